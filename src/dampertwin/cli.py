@@ -1,0 +1,75 @@
+"""Command line: ``dampertwin design show|check``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .design import TYPES, DesignError, load
+from .design.schema import TYPE_MEANING
+
+DEFAULT_DESIGN = Path("conf/design/baseline.yaml")
+
+
+def _fmt_value(v) -> str:
+    if isinstance(v, tuple):
+        return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
+    if isinstance(v, str):
+        return v
+    return f"{v:.6g}"
+
+
+def format_table(design, ptype: str | None = None) -> str:
+    """A readable table: number, name, type, value, unit (and bounds)."""
+    rows = [p for p in design.parameters.values() if ptype is None or p.type == ptype]
+    head = ("no", "name", "type", "value", "unit", "bounds")
+    body = [
+        (
+            str(p.no), p.key, p.type, _fmt_value(p.value), p.unit,
+            "" if p.bounds is None else f"[{_fmt_value(p.bounds[0])}, {_fmt_value(p.bounds[1])}]",
+        )
+        for p in rows
+    ]
+    widths = [max(len(r[i]) for r in [head, *body]) for i in range(len(head))]
+    lines = [
+        f"design {design.name!r}  hash {design.hash()}  ({len(rows)} of {len(design.parameters)} parameters"
+        + (f", type {ptype} = {TYPE_MEANING[ptype]})" if ptype else ")"),
+        "  ".join(h.ljust(w) for h, w in zip(head, widths)),
+        "  ".join("-" * w for w in widths),
+    ]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in body]
+    if ptype is None:
+        on = [k for k, v in design.effects.items() if v]
+        off = [k for k, v in design.effects.items() if not v]
+        lines.append(f"effects on: {', '.join(on) or '-'}; off: {', '.join(off) or '-'}")
+        lines.append(f"constants: {len(design.constants)} (see the YAML 'constants:' section)")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="dampertwin", description="Semi-active damper digital twin")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    dsg = sub.add_parser("design", help="inspect and validate design descriptions")
+    dsub = dsg.add_subparsers(dest="action", required=True)
+    show = dsub.add_parser("show", help="print the parameter table of a design")
+    show.add_argument("path", nargs="?", default=str(DEFAULT_DESIGN))
+    show.add_argument("--type", choices=TYPES, help="only parameters of this type")
+    chk = dsub.add_parser("check", help="validate a design file; exit 1 listing every problem")
+    chk.add_argument("path")
+    args = ap.parse_args(argv)
+
+    try:
+        design = load(args.path)
+    except DesignError as e:
+        print(str(e), file=sys.stderr)
+        return 1
+    if args.action == "show":
+        print(format_table(design, args.type))
+    else:
+        print(f"{args.path}: OK ({len(design.parameters)} parameters, hash {design.hash()})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,660 @@
+"""The design description: 105 parameters, constants, effect switches.
+
+A :class:`Design` is immutable. ``load`` reads and validates a YAML file;
+``Design.with_overrides`` returns a validated copy (variants and calibration
+results are overrides); ``Design.dump`` writes a file that loads back to an
+equal design. Validation collects every problem and raises one
+:class:`DesignError` listing each with the file, parameter number and name.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from .schema import (
+    BY_NUMBER,
+    CONSTANT_TYPES,
+    CONSTANTS,
+    EFFECTS,
+    MAP_COLUMNS,
+    PARAMETERS,
+    SI_UNITS,
+    TYPES,
+)
+
+PARAM_FIELDS = ("no", "name", "symbol", "group", "description", "type", "value", "unit", "source")
+CONST_FIELDS = ("name", "symbol", "description", "type", "value", "unit", "source")
+TOP_KEYS = ("design", "description", "parameters", "constants", "effects")
+
+
+class DesignError(ValueError):
+    """A design description is invalid; ``errors`` lists every problem."""
+
+    def __init__(self, errors: list[str]):
+        self.errors = list(errors)
+        n = len(self.errors)
+        super().__init__(f"{n} problem{'s' * (n != 1)} in design description:\n  - " + "\n  - ".join(self.errors))
+
+
+# --- YAML: accept 1e-6 as a float (YAML 1.2), which PyYAML reads as a string.
+class _Loader(yaml.SafeLoader):
+    pass
+
+
+_FLOAT_RE = re.compile(
+    r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+    |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+    |[-+]?\.(?:inf|Inf|INF)
+    |\.(?:nan|NaN|NAN))$""",
+    re.X,
+)
+_Loader.yaml_implicit_resolvers = {
+    k: [(tag, rx) for tag, rx in v if tag not in ("tag:yaml.org,2002:float", "tag:yaml.org,2002:bool")]
+    for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_RE, list("-+0123456789."))
+# YAML 1.2 booleans only: an unquoted `no: 1` key is the string "no".
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF")
+)
+
+
+class _Dumper(yaml.SafeDumper):
+    pass
+
+
+def _repr_str(dumper: yaml.SafeDumper, s: str):
+    style = "|" if "\n" in s else None
+    return dumper.represent_scalar("tag:yaml.org,2002:str", s, style=style)
+
+
+_Dumper.add_representer(str, _repr_str)
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One numbered parameter of table 5.1 (value in SI ``unit``)."""
+
+    no: int
+    name: str
+    symbol: str
+    group: str
+    description: str
+    type: str
+    value: Any  # float, tuple[float, ...] (vector) or str (table file)
+    unit: str
+    source: str
+    bounds: tuple | None = None
+
+    @property
+    def key(self) -> str:
+        return f"{self.group}.{self.name}"
+
+
+@dataclass(frozen=True)
+class Constant:
+    """An unnumbered equation constant (DESIGN.md §3)."""
+
+    name: str
+    symbol: str
+    description: str
+    type: str
+    value: float
+    unit: str
+    source: str
+
+
+@dataclass(frozen=True)
+class PQMap:
+    """Active-valve characteristic (no. 52): Q [m^3/s] on a current x dp grid.
+
+    ``flow[i, j]`` is the flow at ``currents[i]`` [A] and ``dps[j]`` [Pa].
+    """
+
+    currents: np.ndarray
+    dps: np.ndarray
+    flow: np.ndarray
+
+    def __eq__(self, other):
+        return (
+            isinstance(other, PQMap)
+            and np.array_equal(self.currents, other.currents)
+            and np.array_equal(self.dps, other.dps)
+            and np.array_equal(self.flow, other.flow)
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """A validated damper design. Index by ``"group.name"``, a unique bare
+    name, or table-5.1 number to get the SI value."""
+
+    name: str
+    description: str
+    parameters: Mapping[int, Parameter]
+    constants: Mapping[str, Constant]
+    effects: Mapping[str, bool]
+    pq_map: PQMap
+    path: Path | None = field(default=None, compare=False)
+
+    # ---- access -----------------------------------------------------------
+    def param(self, key: int | str) -> Parameter:
+        if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
+            if int(key) not in self.parameters:
+                raise KeyError(f"no parameter number {key} (expected 1..105)")
+            return self.parameters[int(key)]
+        if not isinstance(key, str):
+            raise KeyError(f"parameter key must be a number or a name, got {key!r}")
+        no = _resolve_name(key)
+        if no is None:
+            raise KeyError(f"unknown parameter {key!r} (use 'group.name', e.g. 'piston_rebound.a')")
+        return self.parameters[no]
+
+    def __getitem__(self, key: int | str):
+        if isinstance(key, str) and key.startswith("constants."):
+            return self.constants[key.split(".", 1)[1]].value
+        if isinstance(key, str) and key.startswith("effects."):
+            return self.effects[key.split(".", 1)[1]]
+        return self.param(key).value
+
+    def constant(self, name: str) -> float:
+        return self.constants[name].value
+
+    def by_type(self, t: str) -> list[Parameter]:
+        if t not in TYPES:
+            raise ValueError(f"unknown type {t!r}; expected one of {', '.join(TYPES)}")
+        return [p for p in self.parameters.values() if p.type == t]
+
+    def group(self, g: str) -> dict[str, Any]:
+        """Values of one group keyed by name (e.g. ``design.group('top_mount')``)."""
+        return {p.name: p.value for p in self.parameters.values() if p.group == g}
+
+    def __eq__(self, other):
+        """Equal content and documentation (the P/Q map compares by data)."""
+        return isinstance(other, Design) and self.hash() == other.hash() and self._doc_no_map() == other._doc_no_map()
+
+    def _doc_no_map(self) -> dict:
+        doc = self._doc(None)
+        for p in doc["parameters"]:
+            if BY_NUMBER[p["no"]].kind == "table":
+                p["value"] = None
+        return doc
+
+    __hash__ = None  # type: ignore[assignment]
+
+    # ---- variants ---------------------------------------------------------
+    def with_overrides(self, overrides: Mapping[Any, Any]) -> "Design":
+        """A new validated design with some values replaced.
+
+        Keys: a number, ``"group.name"``, a unique bare name,
+        ``"constants.NAME"`` or ``"effects.NAME"``. A string value for no. 52
+        names another P/Q map file (relative to this design's folder).
+        """
+        where = str(self.path) if self.path else "<overrides>"
+        doc = self._doc(self.path.parent if self.path else None)
+        errors: list[str] = []
+        pindex = {p["no"]: p for p in doc["parameters"]}
+        cindex = {c["name"]: c for c in doc["constants"]}
+        for key, val in overrides.items():
+            if isinstance(key, str) and key.startswith("constants."):
+                cname = key.split(".", 1)[1]
+                if cname not in cindex:
+                    errors.append(f"{where}: override of unknown constant {cname!r}")
+                else:
+                    cindex[cname]["value"] = _plain(val)
+                continue
+            if isinstance(key, str) and key.startswith("effects."):
+                ename = key.split(".", 1)[1]
+                if ename not in doc["effects"]:
+                    errors.append(f"{where}: override of unknown effect {ename!r}; expected one of {', '.join(EFFECTS)}")
+                else:
+                    doc["effects"][ename] = val
+                continue
+            try:
+                no = self.param(key).no
+            except KeyError as e:
+                errors.append(f"{where}: override of unknown parameter {key!r}: {e.args[0]}")
+                continue
+            pindex[no]["value"] = _plain(val)
+        if errors:
+            raise DesignError(errors)
+        return _from_doc(doc, self.path, base_dir=self.path.parent if self.path else Path.cwd())
+
+    # ---- output -----------------------------------------------------------
+    def _doc(self, rel_to: Path | None) -> dict:
+        params = []
+        for no in sorted(self.parameters):
+            p = self.parameters[no]
+            value = p.value
+            if isinstance(value, tuple):
+                value = list(value)
+            if BY_NUMBER[no].kind == "table":
+                value = _rel(value, rel_to, self.path)
+            d = {
+                "no": p.no, "name": p.name, "symbol": p.symbol, "group": p.group,
+                "description": p.description, "type": p.type, "value": value,
+                "unit": p.unit, "source": p.source,
+            }
+            if p.bounds is not None:
+                d["bounds"] = [list(b) if isinstance(b, tuple) else b for b in p.bounds]
+            params.append(d)
+        consts = [
+            {"name": c.name, "symbol": c.symbol, "description": c.description, "type": c.type,
+             "value": c.value, "unit": c.unit, "source": c.source}
+            for c in self.constants.values()
+        ]
+        return {
+            "design": self.name,
+            "description": self.description,
+            "parameters": params,
+            "constants": consts,
+            "effects": dict(self.effects),
+        }
+
+    def dumps(self, rel_to: Path | None = None) -> str:
+        return yaml.dump(self._doc(rel_to), Dumper=_Dumper, sort_keys=False, width=100, allow_unicode=True)
+
+    def dump(self, path: str | os.PathLike) -> Path:
+        """Write the design as YAML (atomically). The P/Q map file is
+        referenced relative to the new file's folder."""
+        path = Path(path)
+        text = self.dumps(path.resolve().parent)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+        tmp.write_text(text)
+        os.replace(tmp, path)
+        return path
+
+    def hash(self) -> str:
+        """Stable content hash (hex sha256, 16 chars) of everything that
+        affects results: values, types, units, bounds, constants, effects and
+        the P/Q map data (not its file name, not descriptions)."""
+        content = {
+            "p": [
+                [p.no, p.type, p.unit, None if BY_NUMBER[p.no].kind == "table" else _canon(p.value), _canon(p.bounds)]
+                for p in (self.parameters[n] for n in sorted(self.parameters))
+            ],
+            "c": sorted([c.name, c.type, c.unit, _canon(c.value)] for c in self.constants.values()),
+            "e": sorted(self.effects.items()),
+            "m": [_canon(tuple(self.pq_map.currents)), _canon(tuple(self.pq_map.dps)),
+                  _canon(tuple(self.pq_map.flow.ravel()))],
+        }
+        blob = json.dumps(content, sort_keys=True, separators=(",", ":")).encode()
+        return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def _canon(v):
+    if v is None:
+        return None
+    if isinstance(v, (tuple, list)):
+        return [_canon(x) for x in v]
+    return repr(float(v))
+
+
+def _plain(v):
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return v
+
+
+def _rel(value: str, rel_to: Path | None, src: Path | None) -> str:
+    if rel_to is None or src is None:
+        return value
+    absolute = (src.parent / value).resolve() if not os.path.isabs(value) else Path(value)
+    return os.path.relpath(absolute, rel_to)
+
+
+_NAME_INDEX: dict[str, int] = {}
+for _s in PARAMETERS:
+    _NAME_INDEX[f"{_s.group}.{_s.name}"] = _s.no
+_BARE_COUNT: dict[str, list[int]] = {}
+for _s in PARAMETERS:
+    _BARE_COUNT.setdefault(_s.name, []).append(_s.no)
+for _n, _nos in _BARE_COUNT.items():
+    if len(_nos) == 1:
+        _NAME_INDEX.setdefault(_n, _nos[0])
+
+
+def _resolve_name(key: str) -> int | None:
+    return _NAME_INDEX.get(key)
+
+
+# ---------------------------------------------------------------- loading
+def load(path: str | os.PathLike) -> Design:
+    """Read and validate a design YAML file (raises DesignError)."""
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise DesignError([f"{where}: file not found"])
+    try:
+        doc = yaml.load(path.read_text(), Loader=_Loader)
+    except yaml.YAMLError as e:
+        raise DesignError([f"{where}: not valid YAML: {e}"]) from None
+    return _from_doc(doc, path, base_dir=path.parent)
+
+
+def loads(text: str, base_dir: str | os.PathLike = ".", where: str = "<string>") -> Design:
+    try:
+        doc = yaml.load(text, Loader=_Loader)
+    except yaml.YAMLError as e:
+        raise DesignError([f"{where}: not valid YAML: {e}"]) from None
+    return _from_doc(doc, None, base_dir=Path(base_dir), where=where)
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = None) -> Design:
+    where = where or (str(path) if path else "<design>")
+    errors: list[str] = []
+    if not isinstance(doc, dict):
+        raise DesignError([f"{where}: expected a mapping with keys {', '.join(TOP_KEYS)}, got {type(doc).__name__}"])
+    for k in doc:
+        if k not in TOP_KEYS:
+            errors.append(f"{where}: unknown top-level key {k!r}; expected {', '.join(TOP_KEYS)}")
+    name = doc.get("design")
+    if not isinstance(name, str) or not name:
+        errors.append(f"{where}: 'design' must be a non-empty name string")
+        name = str(name)
+    description = doc.get("description", "")
+    if not isinstance(description, str):
+        errors.append(f"{where}: 'description' must be a string")
+        description = str(description)
+
+    params, pq_map = _parse_parameters(doc.get("parameters"), where, base_dir, errors)
+    constants = _parse_constants(doc.get("constants"), where, errors)
+    effects = _parse_effects(doc.get("effects"), where, errors)
+    if errors:
+        raise DesignError(errors)
+    return Design(
+        name=name,
+        description=description,
+        parameters=MappingProxyType(params),
+        constants=MappingProxyType(constants),
+        effects=MappingProxyType(effects),
+        pq_map=pq_map,
+        path=path,
+    )
+
+
+def _parse_parameters(items, where, base_dir, errors) -> tuple[dict[int, Parameter], PQMap | None]:
+    out: dict[int, Parameter] = {}
+    pq_map = None
+    if not isinstance(items, list):
+        errors.append(f"{where}: 'parameters' must be a list of parameter entries (nos. 1..105)")
+        return out, None
+    seen: dict[int, int] = {}
+    for idx, item in enumerate(items):
+        label = f"{where}: parameters[{idx}]"
+        if not isinstance(item, dict):
+            errors.append(f"{label}: expected a mapping, got {type(item).__name__}")
+            continue
+        no = item.get("no")
+        nm = item.get("name")
+        if "no" not in item:
+            errors.append(f"{label} (name {nm!r}): missing number 'no' (expected an integer 1..105)")
+            continue
+        if not isinstance(no, int) or isinstance(no, bool) or no not in BY_NUMBER:
+            errors.append(f"{label} no. {no!r} ({nm!r}): number outside 1..105 or not an integer")
+            continue
+        spec = BY_NUMBER[no]
+        label = f"{where}: no. {no} ({spec.group}.{spec.name})"
+        if no in seen:
+            errors.append(f"{label}: duplicated number (entries {seen[no]} and {idx})")
+            continue
+        seen[no] = idx
+        n_err = len(errors)
+        for k in item:
+            if k not in PARAM_FIELDS + ("bounds",):
+                errors.append(f"{label}: unknown field {k!r}; expected {', '.join(PARAM_FIELDS)}, bounds")
+        for k in PARAM_FIELDS:
+            if k not in item:
+                errors.append(f"{label}: missing field {k!r}")
+        if nm is not None and nm != spec.name:
+            errors.append(f"{label}: name {nm!r} does not match table 5.1 no. {no}; expected {spec.name!r}")
+        if item.get("group") is not None and item.get("group") != spec.group:
+            errors.append(f"{label}: group {item.get('group')!r}; expected {spec.group!r}")
+        for k in ("symbol", "description", "source"):
+            if k in item and not isinstance(item[k], str):
+                errors.append(f"{label}: field {k!r} must be a string")
+        ptype = item.get("type")
+        if "type" in item and ptype not in TYPES:
+            errors.append(f"{label}: unknown type {ptype!r}; expected one of D, F, C, T")
+        unit = item.get("unit")
+        if "unit" in item:
+            if unit not in SI_UNITS:
+                errors.append(f"{label}: unit {unit!r} is unknown or not SI; expected {spec.unit!r}")
+            elif unit != spec.unit:
+                errors.append(f"{label}: unit {unit!r}; expected the SI unit {spec.unit!r}")
+        value = item.get("value")
+        bounds = item.get("bounds")
+        if spec.kind == "table":
+            if bounds is not None:
+                errors.append(f"{label}: a P/Q map takes no bounds")
+            if not isinstance(value, str) or not value:
+                errors.append(f"{label}: value must be the file name of the P/Q map CSV, got {value!r}")
+            else:
+                map_path = Path(value) if os.path.isabs(value) else base_dir / value
+                pq_map = _read_map(map_path, label, errors)
+        else:
+            value = _check_value(value, spec, label, errors)
+            bounds = _check_bounds(bounds, ptype, value, spec, label, errors)
+        if len(errors) == n_err:
+            out[no] = Parameter(
+                no=no, name=nm, symbol=item["symbol"], group=item["group"],
+                description=item["description"], type=ptype, value=value, unit=unit,
+                source=item["source"], bounds=bounds,
+            )
+    for no in BY_NUMBER:
+        if no not in seen:
+            s = BY_NUMBER[no]
+            errors.append(f"{where}: no. {no} ({s.group}.{s.name}): missing number (table 5.1 has it)")
+    return out, pq_map
+
+
+def _check_value(value, spec, label, errors):
+    if spec.kind == "vector":
+        if not isinstance(value, list) or not value or not all(_is_num(v) for v in value):
+            errors.append(f"{label}: value must be a non-empty list of numbers, got {value!r}")
+            return None
+        if not all(math.isfinite(v) for v in value):
+            errors.append(f"{label}: value has a non-finite entry: {value!r}")
+            return None
+        return tuple(float(v) for v in value)
+    if value is None:
+        errors.append(f"{label}: missing value (expected a finite number in {spec.unit})")
+        return None
+    if not _is_num(value):
+        errors.append(f"{label}: value {value!r} is not a number (expected a finite number in {spec.unit})")
+        return None
+    if not math.isfinite(value):
+        errors.append(f"{label}: value {value!r} is not finite")
+        return None
+    return float(value)
+
+
+def _check_bounds(bounds, ptype, value, spec, label, errors):
+    if bounds is None:
+        if ptype == "C":
+            errors.append(f"{label}: calibrated (C) parameter has no bounds; expected [lower, upper] in {spec.unit}")
+        return None
+    if ptype != "C":
+        errors.append(f"{label}: bounds given on a type-{ptype} parameter; only C parameters take bounds")
+        return None
+    if not isinstance(bounds, list) or len(bounds) != 2:
+        errors.append(f"{label}: bounds must be [lower, upper], got {bounds!r}")
+        return None
+    lo, hi = bounds
+    if spec.kind == "vector":
+        n = len(value) if value is not None else None
+        ok = all(isinstance(b, list) and (n is None or len(b) == n) and all(_is_num(x) and math.isfinite(x) for x in b) for b in (lo, hi))
+        if not ok:
+            errors.append(f"{label}: bounds must be [[lower...], [upper...]] with one finite number per coefficient")
+            return None
+        pairs = list(zip(lo, hi))
+        out = (tuple(float(x) for x in lo), tuple(float(x) for x in hi))
+    else:
+        if not (_is_num(lo) and _is_num(hi) and math.isfinite(lo) and math.isfinite(hi)):
+            errors.append(f"{label}: bounds must be two finite numbers, got {bounds!r}")
+            return None
+        pairs = [(lo, hi)]
+        out = (float(lo), float(hi))
+    for k, (a, b) in enumerate(pairs):
+        if not a < b:
+            errors.append(f"{label}: bounds lower {a!r} >= upper {b!r}")
+            return None
+    if value is not None:
+        vals = value if spec.kind == "vector" else (value,)
+        for v, (a, b) in zip(vals, pairs):
+            if not a <= v <= b:
+                errors.append(f"{label}: value {v!r} outside bounds [{a!r}, {b!r}] {spec.unit}")
+                return None
+    return out
+
+
+def _parse_constants(items, where, errors) -> dict[str, Constant]:
+    out: dict[str, Constant] = {}
+    if not isinstance(items, list):
+        errors.append(f"{where}: 'constants' must be a list of entries")
+        return out
+    for idx, item in enumerate(items):
+        if not isinstance(item, dict):
+            errors.append(f"{where}: constants[{idx}]: expected a mapping")
+            continue
+        nm = item.get("name")
+        label = f"{where}: constant {nm!r}"
+        if nm not in CONSTANTS:
+            errors.append(f"{label}: unknown constant; expected one of {', '.join(CONSTANTS)}")
+            continue
+        if nm in out:
+            errors.append(f"{label}: duplicated")
+            continue
+        n_err = len(errors)
+        for k in item:
+            if k not in CONST_FIELDS:
+                errors.append(f"{label}: unknown field {k!r}; expected {', '.join(CONST_FIELDS)}")
+        for k in CONST_FIELDS:
+            if k not in item:
+                errors.append(f"{label}: missing field {k!r}")
+        if "type" in item and item["type"] not in CONSTANT_TYPES:
+            errors.append(f"{label}: type {item['type']!r}; constants are D or F")
+        unit = item.get("unit")
+        if "unit" in item and unit != CONSTANTS[nm]:
+            kind = "unknown or not SI" if unit not in SI_UNITS else "not the declared SI unit"
+            errors.append(f"{label}: unit {unit!r} is {kind}; expected {CONSTANTS[nm]!r}")
+        v = item.get("value")
+        if "value" in item and (not _is_num(v) or not math.isfinite(v)):
+            errors.append(f"{label}: value {v!r} is not a finite number")
+        for k in ("symbol", "description", "source"):
+            if k in item and not isinstance(item[k], str):
+                errors.append(f"{label}: field {k!r} must be a string")
+        if len(errors) == n_err:
+            out[nm] = Constant(nm, item["symbol"], item["description"], item["type"], float(v), unit, item["source"])
+    for nm in CONSTANTS:
+        if nm not in out and not any(isinstance(i, dict) and i.get("name") == nm for i in items):
+            errors.append(f"{where}: constant {nm!r} missing (expected in {CONSTANTS[nm]})")
+    return out
+
+
+def _parse_effects(eff, where, errors) -> dict[str, bool]:
+    out: dict[str, bool] = {}
+    if not isinstance(eff, dict):
+        errors.append(f"{where}: 'effects' must be a mapping of switch -> true/false")
+        return out
+    for k, v in eff.items():
+        if k not in EFFECTS:
+            errors.append(f"{where}: effects.{k}: unknown effect switch; expected one of {', '.join(EFFECTS)}")
+        elif not isinstance(v, bool):
+            errors.append(f"{where}: effects.{k}: value {v!r} must be true or false")
+        else:
+            out[k] = v
+    for k in EFFECTS:
+        if k not in eff:
+            errors.append(f"{where}: effects.{k}: missing switch (expected true or false)")
+    return {k: out[k] for k in EFFECTS if k in out}
+
+
+def _read_map(path: Path, label: str, errors: list[str]) -> PQMap | None:
+    """Read and check the active-valve P/Q map CSV (tidy: current, dp, flow)."""
+    if not path.is_file():
+        errors.append(f"{label}: P/Q map file {str(path)!r} not found")
+        return None
+    n0 = len(errors)
+    try:
+        rows = list(csv.reader(io.StringIO(path.read_text())))
+    except (OSError, UnicodeDecodeError) as e:
+        errors.append(f"{label}: cannot read P/Q map {str(path)!r}: {e}")
+        return None
+    if not rows or tuple(c.strip() for c in rows[0]) != MAP_COLUMNS:
+        errors.append(f"{label}: P/Q map {str(path)!r} header {rows[0] if rows else []}; expected columns {list(MAP_COLUMNS)}")
+        return None
+    data = []
+    for i, r in enumerate(rows[1:], start=2):
+        try:
+            vals = [float(x) for x in r]
+        except ValueError:
+            errors.append(f"{label}: P/Q map {str(path)!r} line {i}: non-numeric entry {r}")
+            continue
+        if len(vals) != 3 or not all(math.isfinite(x) for x in vals):
+            errors.append(f"{label}: P/Q map {str(path)!r} line {i}: expected 3 finite numbers, got {r}")
+            continue
+        data.append(vals)
+    if len(errors) > n0:
+        return None
+    arr = np.array(data, dtype=float).reshape(-1, 3)
+    currents = np.unique(arr[:, 0])
+    dps = np.unique(arr[:, 1])
+    if len(currents) < 2 or len(dps) < 2 or len(arr) != len(currents) * len(dps):
+        errors.append(f"{label}: P/Q map {str(path)!r} must be a full grid of >= 2 currents x >= 2 dp values, each pair once")
+        return None
+    if currents[0] < 0 or dps[0] != 0.0:
+        errors.append(f"{label}: P/Q map {str(path)!r}: currents must be >= 0 A and dp must start at 0 Pa (negative dp is the odd extension)")
+        return None
+    flow = np.full((len(currents), len(dps)), np.nan)
+    ci = np.searchsorted(currents, arr[:, 0])
+    di = np.searchsorted(dps, arr[:, 1])
+    flow[ci, di] = arr[:, 2]
+    if np.isnan(flow).any():
+        errors.append(f"{label}: P/Q map {str(path)!r}: grid has duplicated (current, dp) pairs")
+        return None
+    if np.any(flow[:, 0] != 0.0):
+        errors.append(f"{label}: P/Q map {str(path)!r}: flow at dp = 0 must be 0")
+    if np.any(np.diff(flow, axis=1) <= 0):
+        i = int(np.argwhere(np.diff(flow, axis=1) <= 0)[0, 0])
+        errors.append(f"{label}: P/Q map {str(path)!r} is not monotone: flow must rise with dp (current {currents[i]} A)")
+    if np.any(np.diff(flow, axis=0) > 0):
+        errors.append(f"{label}: P/Q map {str(path)!r} is not monotone: flow must not rise with current at fixed dp (higher current = more restriction)")
+    if len(errors) > n0:
+        return None
+    return PQMap(currents, dps, flow)
+
+
+def write_map(path: str | os.PathLike, pq: PQMap) -> None:
+    """Write a P/Q map in the tidy CSV layout read by :func:`load`."""
+    lines = [",".join(MAP_COLUMNS)]
+    for i, c in enumerate(pq.currents):
+        for j, dp in enumerate(pq.dps):
+            lines.append(f"{float(c)!r},{float(dp)!r},{float(pq.flow[i, j])!r}")
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+__all__ = ["Design", "DesignError", "Parameter", "Constant", "PQMap", "load", "loads", "write_map"]

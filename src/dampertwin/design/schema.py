@@ -1,0 +1,162 @@
+"""What a design description must contain: the 105 parameters of thesis
+table 5.1, the unnumbered equation constants, and the effect switches.
+
+The registry fixes, for each number, the group, the python name and the SI
+unit the model expects. A design file may choose values, types, sources and
+bounds, but not what a number means. Units are written as plain strings
+("N/m", "N*s/m", "m^2"); "-" is dimensionless.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+TYPES = ("D", "F", "C", "T")
+TYPE_MEANING = {
+    "D": "design, from drawings",
+    "F": "fixed, from literature",
+    "C": "calibrated",
+    "T": "test condition",
+}
+
+# Every unit the project accepts. Anything else (mm, bar, l/min, degC, ...)
+# is rejected: values are stored in SI.
+SI_UNITS = frozenset(
+    {
+        "-", "m", "m^2", "m^3", "kg", "s", "K", "A", "N", "Pa", "rad",
+        "1/s", "1/m", "m/s", "m^2/s", "m^3/s", "kg/m^3", "N/m", "N*s/m",
+    }
+)
+
+
+class Spec(NamedTuple):
+    no: int
+    group: str
+    name: str
+    unit: str
+    kind: str = "scalar"  # "scalar" | "vector" | "table"
+
+
+def _shim(start: int, group: str) -> list[Spec]:
+    """Shim-stack valve parameters, table 5.1 nos. 34-51 / 69-86."""
+    names = [
+        ("D_d", "m"), ("D_i", "m"), ("Cq_max", "-"), ("lambda_crit", "-"),
+        ("A_bleed", "m^2"), ("Cq_bleed", "-"), ("A_slot", "m^2"), ("Cq_slot", "-"),
+        ("m_v", "kg"), ("c_v", "N*s/m"), ("sigma0", "N/m"), ("F_c", "N"),
+        ("alpha", "-"), ("F_preload", "N"), ("a", "N"), ("b", "1/m"), ("c", "N"),
+        ("d", "1/m"),
+    ]
+    return [Spec(start + k, group, n, u) for k, (n, u) in enumerate(names)]
+
+
+def _intake(start: int, group: str) -> list[Spec]:
+    """Intake (check) valve parameters, table 5.1 nos. 53-68 / 87-102."""
+    names = [
+        ("D_d", "m"), ("D_i", "m"), ("D_c", "m"), ("D_h", "m"), ("Cq_max", "-"),
+        ("lambda_crit", "-"), ("A_slot", "m^2"), ("Cq_slot", "-"), ("m_v", "kg"),
+        ("c_v", "N*s/m"), ("F_preload", "N"), ("a", "N"), ("b", "1/m"), ("c", "N"),
+        ("d", "1/m"), ("x_v0", "m"),
+    ]
+    return [Spec(start + k, group, n, u) for k, (n, u) in enumerate(names)]
+
+
+PARAMETERS: tuple[Spec, ...] = tuple(
+    [
+        Spec(1, "geometry", "M_rod", "kg"),
+        Spec(2, "geometry", "D_PT", "m"),
+        Spec(3, "geometry", "D_R", "m"),
+        Spec(4, "geometry", "V_b", "m^3"),
+        Spec(5, "geometry", "l_c0", "m"),
+        Spec(6, "geometry", "l_r0", "m"),
+        Spec(7, "oil", "K_oil", "Pa"),
+        Spec(8, "oil", "rho_oil", "kg/m^3"),
+        Spec(9, "oil", "nu", "m^2/s"),
+        Spec(10, "oil", "P_sat", "Pa"),
+        Spec(11, "oil", "P_vap", "Pa"),
+        Spec(12, "oil", "chi", "-"),
+        Spec(13, "oil", "Gamma", "-"),
+        Spec(14, "oil", "P_0", "Pa"),
+        Spec(15, "oil", "T", "K"),
+        Spec(16, "third_tube", "E", "Pa"),
+        Spec(17, "third_tube", "nu_p", "-"),
+        Spec(18, "third_tube", "r_o", "m"),
+        Spec(19, "third_tube", "r_i", "m"),
+        Spec(20, "top_mount", "R", "1/s"),
+        Spec(21, "top_mount", "p0", "-"),
+        Spec(22, "top_mount", "p1", "-"),
+        Spec(23, "top_mount", "p2", "-"),
+        Spec(24, "top_mount", "q0", "-"),
+        Spec(25, "top_mount", "q1", "-"),
+        Spec(26, "top_mount", "q2", "-"),
+        Spec(27, "top_mount", "k0", "N/m"),
+        Spec(28, "top_mount", "k1", "N/m"),
+        Spec(29, "top_mount", "k2", "N/m"),
+        Spec(30, "top_mount", "c0", "N*s/m"),
+        Spec(31, "top_mount", "c1", "N*s/m"),
+        Spec(32, "top_mount", "c2", "N*s/m"),
+        Spec(33, "top_mount", "F_LD", "N", "vector"),
+    ]
+    + _shim(34, "piston_rebound")
+    + [Spec(52, "active_valve", "pq_map", "m^3/s", "table")]
+    + _intake(53, "piston_intake")
+    + _shim(69, "base_compression")
+    + _intake(87, "base_intake")
+    + [
+        Spec(103, "rod_friction", "F_c", "N"),
+        Spec(104, "rod_friction", "F_s", "N"),
+        Spec(105, "rod_friction", "k_b", "N/m"),
+    ]
+)
+BY_NUMBER = {s.no: s for s in PARAMETERS}
+GROUPS = tuple(dict.fromkeys(s.group for s in PARAMETERS))
+VALVES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
+SHIM_VALVES = ("piston_rebound", "base_compression")
+INTAKE_VALVES = ("piston_intake", "base_intake")
+
+# Equation constants table 5.1 leaves out (DESIGN.md §3): name -> SI unit.
+CONSTANTS: dict[str, str] = {
+    "P_atm": "Pa",
+    "P_ref": "Pa",
+    "T_ref": "K",
+    "rho_gas": "kg/m^3",
+    "V_gas0": "m^3",
+    "pt_r_i": "m",
+    "pt_r_o": "m",
+    "wall_ratio_third_tube": "-",
+    "A_bypass": "m^2",
+    "Cq_bypass": "-",
+    "p_transition": "Pa",
+    "zeta": "rad",
+    "k_contact": "N/m",
+    "zeta_contact": "-",
+    "delta_contact": "m",
+    "x_max_piston_rebound": "m",
+    "x_max_piston_intake": "m",
+    "x_max_base_compression": "m",
+    "x_max_base_intake": "m",
+    "s2": "N*s/m",
+    "c_comp": "N*s/m",
+    "vd": "m/s",
+    "a_s": "m/s",
+    "alpha_s": "-",
+    "y_unit": "m",
+    "w_unit": "m/s",
+}
+CONSTANT_TYPES = ("D", "F")
+
+# Optional physical effects (every one can be switched off).
+EFFECTS: dict[str, str] = {
+    "gas_content": "free gas in the emulsion, eq. 4.14-4.16 (off: K = K_oil)",
+    "wall_compliance": "tube wall compliance, eq. 4.17-4.18",
+    "cavitation": "chamber pressure floor at the vapour pressure",
+    "valve_stiction": "squeeze-film stiction on intake valves, eq. 4.25",
+    "shim_friction": "Dahl friction on shim valves, eq. 4.26",
+    "jet_force": "flow momentum force on valves, eq. 4.24",
+    "flow_number_cq": "Cq(lambda) of eq. 4.30-4.31 (off: Cq = Cq_max)",
+    "slot_restriction": "valve slot orifice in series with the opening",
+    "rod_friction": "LuGre rod friction, eq. 4.38-4.41",
+    "top_mount_dynamics": "AutoBushFD dynamic branches, eq. 4.32-4.36 (off: static curve only)",
+}
+
+# Columns of the active-valve P/Q map (parameter no. 52).
+MAP_COLUMNS = ("current [A]", "dp [Pa]", "flow [m^3/s]")

@@ -1,0 +1,48 @@
+"""Repository contracts: README quick start == CI, CLI behaviour, dvc.yaml."""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+from dampertwin.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def quick_start_commands():
+    text = (ROOT / "README.md").read_text()
+    section = text.split("## Quick start", 1)[1].split("\n## ", 1)[0]
+    return [c.strip() for c in re.findall(r"```bash\n#[^\n]*\n(.+?)\n```", section, re.S)]
+
+
+def test_readme_has_exactly_two_quick_start_commands_and_ci_runs_the_second():
+    cmds = quick_start_commands()
+    assert len(cmds) == 2, cmds
+    assert cmds[1] in (ROOT / ".ci" / "run").read_text()
+
+
+def test_cli_show_and_check(capsys, tmp_path):
+    base = ROOT / "conf/design/baseline.yaml"
+    assert main(["design", "show", str(base), "--type", "C"]) == 0
+    out = capsys.readouterr().out
+    assert "piston_rebound.a" in out and "oil.K_oil" not in out
+    assert main(["design", "check", str(base)]) == 0
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(base.read_text().replace("unit: kg\n", "unit: g\n", 1))
+    assert main(["design", "check", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert "no. 1 (geometry.M_rod)" in err and str(bad) in err
+
+
+def test_cli_entry_point_exit_code(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "dampertwin.cli", "design", "check", str(tmp_path / "nope.yaml")],
+                       capture_output=True, text=True)
+    assert r.returncode == 1 and "file not found" in r.stderr
+
+
+def test_dvc_yaml_is_valid():
+    doc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
+    assert isinstance(doc.get("stages"), dict)
