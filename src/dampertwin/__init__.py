@@ -1,1 +1,6 @@
-"""dampertwin."""
+"""dampertwin: a calibrated digital twin of a semi-active shock absorber."""
+
+from .excitation import Excitation
+from .simulation import Result, simulate, simulate_batch
+
+__all__ = ["Excitation", "Result", "simulate", "simulate_batch"]

@@ -1,0 +1,95 @@
+"""Hydraulic medium and structure compliance (thesis 4.3, eq. 4.13-4.18).
+
+All pressures absolute [Pa], volumes [m^3], moduli [Pa].
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+# Below this pressure the gas law of eq. 4.15 is evaluated at this floor
+# (the emulsion is then all gas-and-vapour; avoids P -> 0 in (P_ref/P)^(1/G)).
+P_FLOOR = 100.0  # [Pa]
+
+
+@njit(cache=True)
+def gas_fraction(P, P_sat, P_vap):
+    """Undissolved share theta of the gas, eq. 4.14, clipped to [0, 1]
+    (THESIS-ERRATA 10). Returns (theta, dtheta/dP)."""
+    span = P_sat - P_vap
+    th = 1.0 - (P - P_vap) / span
+    if th >= 1.0:
+        return 1.0, 0.0
+    if th <= 0.0:
+        return 0.0, 0.0
+    return th, -1.0 / span
+
+
+@njit(cache=True)
+def emulsion_denominator(P, K_oil, chi, P_sat, P_vap, P_ref, T, T_ref, Gamma):
+    """Denominator D(P) of eq. 4.15 and dD/dP: rho_eml = rho_ref_mix / D."""
+    P = max(P, P_FLOOR)
+    e = math.exp(-(P - P_ref) / K_oil)
+    th, dth = gas_fraction(P, P_sat, P_vap)
+    g = (P_ref / P) ** (1.0 / Gamma)
+    tt = chi * T / T_ref
+    D = (1.0 - chi) * e + th * tt * g
+    dD = -(1.0 - chi) * e / K_oil + tt * (dth * g - th * g / (Gamma * P))
+    return D, dD
+
+
+@njit(cache=True)
+def emulsion_density(P, rho_oil, rho_gas, K_oil, chi, P_sat, P_vap, P_ref, T, T_ref, Gamma):
+    """Emulsion density, eq. 4.15 [kg/m^3]."""
+    D, _ = emulsion_denominator(P, K_oil, chi, P_sat, P_vap, P_ref, T, T_ref, Gamma)
+    return ((1.0 - chi) * rho_oil + chi * rho_gas) / D
+
+
+@njit(cache=True)
+def emulsion_bulk_modulus(P, K_oil, chi, P_sat, P_vap, P_ref, T, T_ref, Gamma):
+    """K_eml = rho dP/drho, eq. 4.16, from the full derivative of eq. 4.15
+    including the Henry's-law dissolution term (THESIS-ERRATA 11): K = -D/D'."""
+    if chi <= 0.0:
+        return K_oil
+    D, dD = emulsion_denominator(P, K_oil, chi, P_sat, P_vap, P_ref, T, T_ref, Gamma)
+    return -D / dD
+
+
+@njit(cache=True)
+def wall_compliance(E, nu, r_i, r_o):
+    """Volumetric compliance psi [1/Pa] of a thick-walled closed tube, eq. 4.17
+    in Lame's form (THESIS-ERRATA 14): hoop + axial strain of the bore."""
+    ri2 = r_i * r_i
+    ro2 = r_o * r_o
+    return 2.0 / E * ((ro2 + ri2) / (ro2 - ri2) + nu - nu * ri2 / (ro2 - ri2))
+
+
+@njit(cache=True)
+def wall_compliance_literal(E, nu, r_i, r_o):
+    """Eq. 4.17 exactly as printed (last denominator r_o^2 + r_i^2)."""
+    ri2 = r_i * r_i
+    ro2 = r_o * r_o
+    return 2.0 / E * ((ro2 + ri2) / (ro2 - ri2) + nu) - 2.0 / E * nu * ri2 / (ro2 + ri2)
+
+
+@njit(cache=True)
+def wall_bulk_modulus(psi, dP, volume_ratio):
+    """Wall bulk modulus, eq. 4.18, K_wall = (1 + psi dP)/psi, with dP the
+    pressure difference across the wall; divided by V_enclosed/V_chamber for
+    an annular chamber (THESIS-ERRATA 15; 1.0 = thesis literal)."""
+    return (1.0 + psi * dP) / psi / volume_ratio
+
+
+@njit(cache=True)
+def series_bulk_modulus(K_a, K_b):
+    """Total modulus of two compliances in series, eq. 4.13."""
+    return 1.0 / (1.0 / K_a + 1.0 / K_b)
+
+
+@njit(cache=True)
+def gas_spring_pressure(P0, V0, V, Gamma):
+    """Reserve-chamber gas pressure, polytropic from the precharge
+    (THESIS-ERRATA 8): P = P0 (V0/V)^Gamma."""
+    return P0 * (V0 / V) ** Gamma

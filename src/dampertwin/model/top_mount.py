@@ -1,0 +1,43 @@
+"""Top mount: AutoBushFD-like rubber bushing (thesis 4.5, eq. 4.32-4.37).
+
+X is the bushing deflection [m] (rod displacement relative to the housing),
+x its high-passed copy, y and w internal states [m]. Power terms use
+y_unit = 1 mm and w_unit = 1 mm/s (THESIS-ERRATA 32). Requires c1 > 0
+(THESIS-ERRATA 33).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+
+@njit(cache=True)
+def static_force(X, coef):
+    """Static load-deflection polynomial F_LD(X) = sum_k coef[k-1] X^k, k >= 1 [N]."""
+    f = 0.0
+    xp = X
+    for k in range(coef.shape[0]):
+        f += coef[k] * xp
+        xp *= X
+    return f
+
+
+@njit(cache=True)
+def top_mount_rates(Xdot, x, y, w, R, k0, k1, k2, c0, c1, c2):
+    """State rates of eq. 4.32-4.34. Returns (x', y', w')."""
+    xd = Xdot - R * x  # eq. 4.32
+    yd = (c1 * xd + k1 * (x - y) - k0 * y) / c1  # eq. 4.33
+    wd = (c2 * xd + k2 * (x - w)) / (c0 + c2)  # eq. 4.34
+    return xd, yd, wd
+
+
+@njit(cache=True)
+def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, coef, dynamics):
+    """Bushing force eq. 4.35-4.37, F = K y + C w' + F_LD(X) [N]; with
+    ``dynamics`` false only the static curve."""
+    F = static_force(X, coef)
+    if dynamics:
+        K = k0 * (p0 + p1 * abs(y / y_unit) ** p2)  # eq. 4.35
+        C = c0 * (q0 + q1 * abs(wd / w_unit) ** q2)  # eq. 4.36
+        F += K * y + C * wd  # eq. 4.37
+    return F
