@@ -166,7 +166,7 @@ def state_scales(cfg: int) -> np.ndarray:
     s[L.S_VG] = 1e-5  # 10 cm^3
     for k in range(4):
         s[L.S_X0 + 2 * k] = 1e-4  # 0.1 mm
-        s[L.S_X0 + 2 * k + 1] = 1e-1  # 0.1 m/s
+        s[L.S_X0 + 2 * k + 1] = 1.0  # m/s
     s[L.S_DAHL_PR] = s[L.S_DAHL_BC] = 1.0  # N
     s[L.S_Z] = 1e-5  # 10 um
     if cfg == L.CFG_MODULE:
