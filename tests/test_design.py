@@ -219,10 +219,10 @@ def test_hash_stable_and_content_sensitive(base):
 # ------------------------------------------------------------ overrides
 def test_overrides_do_not_mutate_original(base):
     before = base.hash()
-    v = base.with_overrides({"piston_rebound.a": 300.0, 12: 0.005, "constants.zeta": 1.0,
+    v = base.with_overrides({"piston_rebound.a": 350.0, 12: 0.005, "constants.zeta": 1.0,
                              "effects.rod_friction": False})
     assert base.hash() == before
-    assert base["piston_rebound.a"] == 250.0 and v["piston_rebound.a"] == 300.0
+    assert base["piston_rebound.a"] == 300.0 and v["piston_rebound.a"] == 350.0
     assert v["oil.chi"] == 0.005 and v["constants.zeta"] == 1.0
     assert v.effects["rod_friction"] is False and base.effects["rod_friction"] is True
     with pytest.raises(TypeError):

@@ -114,10 +114,12 @@ def _lu_solve(a, piv, b):
 
 
 @njit(cache=True)
-def rodas4(z, t, t_end, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+def rodas4(z, t, t_end, t_pause, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, i_out, out_buf,
            channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx):
-    """Integrate scaled state z (in place) from t to t_end. Writes selected
-    output channels at t_out[i_out:] <= t_end into out_buf. The Jacobian is
+    """Integrate scaled state z (in place) from t towards t_end, returning
+    after the first accepted step that reaches t_pause (so pausing for a
+    wall-time check never changes the step sequence). Writes selected output
+    channels at t_out[i_out:] <= t into out_buf. The Jacobian is
     built by forward differences, one RHS evaluation per column colour
     (sparsity.colouring). Returns (status, t, i_out)."""
     n = z.shape[0]
@@ -148,7 +150,7 @@ def rodas4(z, t, t_end, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, i_
 
     _f(t, z, sc, p, ex, mc, md, mq, cfg, f0, y, dy, out)
     stats[ST_FEVALS] += 1
-    while t < t_end:
+    while t_end - t > H_MIN_REL * max(abs(t), 1.0):
         if stats[ST_STEPS] >= max_steps:
             ctrl[CT_H] = h
             return MAX_STEPS, t, i_out
@@ -177,7 +179,9 @@ def rodas4(z, t, t_end, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, i_
             if stats[ST_STEPS] > max_steps:
                 ctrl[CT_H] = h
                 return MAX_STEPS, t, i_out
-            h = min(h, h_max, t_end - t)
+            h = min(h, h_max)
+            if t + 1.01 * h >= t_end:  # land on t_end, no sliver step after it
+                h = t_end - t
             if h <= H_MIN_REL * max(abs(t), 1.0):
                 ctrl[CT_H] = h
                 return STEP_UNDERFLOW, t, i_out
@@ -276,18 +280,27 @@ def rodas4(z, t, t_end, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, i_
         _f(t, z, sc, p, ex, mc, md, mq, cfg, f0, y, dy, out)
         stats[ST_FEVALS] += 1
         h = hnew
+        if t >= t_pause:
+            ctrl[CT_H] = h
+            return OK, t, i_out
+    # flush outputs at t_end that rounding left unwritten
+    while i_out < n_out and t_out[i_out] <= t_end * (1.0 + 1e-15):
+        _f(t_out[i_out], z, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
+        for c in range(channels.shape[0]):
+            out_buf[i_out, c] = out[channels[c]]
+        i_out += 1
     ctrl[CT_H] = h
-    return OK, t, i_out
+    return OK, t_end, i_out
 
 
 @njit(cache=True, parallel=True)
-def _batch_chunk(Z, T, t_end, P, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
+def _batch_chunk(Z, T, t_end, t_pause, P, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
                  channels, CTRL, STATS, STATUS, max_steps, colour, n_colours, col_ptr, row_idx):
     m = Z.shape[0]
     for b in prange(m):
         if STATUS[b] >= 0:
             continue
-        st, tb, io = rodas4(Z[b], T[b], t_end, P[b], ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out,
+        st, tb, io = rodas4(Z[b], T[b], t_end, t_pause, P[b], ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out,
                             I_OUT[b], OUT[b], channels, CTRL[b], STATS[b], max_steps, colour, n_colours,
                             col_ptr, row_idx)
         T[b] = tb
@@ -346,8 +359,7 @@ def integrate(p, ex, pq, cfg, y0, t_out, *, rtol=1e-4, atol=None, h0=1e-6, h_max
     t_final = float(t_out[-1])
     step = chunk_s if max_wall_s is not None else (t_final - t)
     while t < t_final:
-        t_end = min(t + step, t_final)
-        status, t, i_out = rodas4(z, t, t_end, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out,
+        status, t, i_out = rodas4(z, t, t_final, t + step, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out,
                                   i_out, out, channels, ctrl, stats, max_steps, *col)
         if status != OK:
             break
@@ -386,10 +398,10 @@ def integrate_batch(P, ex, pq, cfg, Y0, t_out, *, rtol=1e-4, atol=None, h0=1e-6,
     t0w = time.perf_counter()
     step = chunk_s if (max_wall_s is not None or progress is not None) else (t_final - t)
     while t < t_final:
-        t_end = min(t + step, t_final)
-        _batch_chunk(Z, T, t_end, P, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
+        t_pause = t + step
+        _batch_chunk(Z, T, t_final, t_pause, P, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
                      channels, CTRL, STATS, STATUS, max_steps, *col)
-        t = t_end
+        t = min(T[STATUS < 0].min(), t_final) if np.any(STATUS < 0) else t_final
         if progress is not None:
             progress(t, t_final)
         if max_wall_s is not None and time.perf_counter() - t0w > max_wall_s and t < t_final:

@@ -1,0 +1,26 @@
+"""Physics submodels of the semi-active damper (thesis chapter 4).
+
+Numba's on-disk cache is invalidated only when a function's own file
+changes, not when a compiled function it calls (in another module) changes.
+So, unless the user chose NUMBA_CACHE_DIR, the cache lives in a folder named
+after a hash of all compiled sources: any edit gives a fresh cache.
+"""
+
+import hashlib
+import os
+from pathlib import Path
+
+
+def _cache_dir() -> str:
+    pkg = Path(__file__).resolve().parent
+    h = hashlib.sha256()
+    for f in sorted(pkg.glob("*.py")) + [pkg.parent / "solver.py"]:
+        h.update(f.read_bytes())
+    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dampertwin" / "numba"
+    return str(base / h.hexdigest()[:16])
+
+
+if not os.environ.get("NUMBA_CACHE_DIR"):
+    import numba
+
+    numba.config.CACHE_DIR = _cache_dir()

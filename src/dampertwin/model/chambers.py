@@ -6,13 +6,17 @@ rebound volume shrinks, the compression volume grows. Pressures absolute.
 
 from __future__ import annotations
 
+import math
+
 from numba import njit
 
 # Cavitation: the effective modulus fades to CAV_MIN of its value as the
-# pressure falls to the vapour pressure over CAV_BAND, so a chamber cannot be
-# pulled far below P_vap (a vapour cavity forms instead).
+# pressure falls to the vapour pressure over CAV_BAND, and decays
+# exponentially (rate CAV_DECAY per band) below it, so a chamber is not pulled
+# below P_vap (a vapour cavity forms instead) yet always recovers.
 CAV_BAND = 0.3e5  # [Pa]
 CAV_MIN = 1e-3
+CAV_DECAY = 5.0
 
 
 @njit(cache=True)
@@ -28,7 +32,7 @@ def cavitation_factor(P, P_vap):
     if u >= 1.0:
         return 1.0
     if u <= 0.0:
-        return CAV_MIN
+        return CAV_MIN * math.exp(CAV_DECAY * u)
     return CAV_MIN + (1.0 - CAV_MIN) * u * u * (3.0 - 2.0 * u)
 
 
