@@ -53,11 +53,14 @@ def _channels(cfg: int, out: np.ndarray) -> dict[str, np.ndarray]:
         ch = {k: out[:, i] for k, i in _BENCH_COLUMNS.items()}
         ch["dp [Pa]"] = ch["p upstream [Pa]"] - ch["p downstream [Pa]"]
         return ch
+    if cfg == L.CFG_TOPMOUNT:
+        return {"displacement [m]": out[:, L.O_U], "velocity [m/s]": out[:, L.O_V],
+                "top mount force [N]": out[:, L.O_F_TM]}
     skip = {L.O_F_TM, L.O_A_ROD} if cfg == L.CFG_DAMPER else set()
     return {name: out[:, i] for i, (name, _) in enumerate(L.OUTPUTS) if i not in skip}
 
 
-def _setup(design, excitation, configuration, current, effects, bench_valve):
+def _setup(design, excitation, configuration, current, effects, bench_valve, bench=None):
     if configuration not in L.CONFIGURATIONS:
         raise ValueError(f"configuration must be one of {list(L.CONFIGURATIONS)}, got {configuration!r}")
     cfg = L.CONFIGURATIONS[configuration]
@@ -66,7 +69,7 @@ def _setup(design, excitation, configuration, current, effects, bench_valve):
         raise ValueError(f"the {configuration!r} configuration takes a {want} excitation, got {excitation.kind!r}")
     if cfg == L.CFG_VALVE and bench_valve not in L.VALVE_NAMES:
         raise ValueError(f"the valve configuration needs bench_valve in {L.VALVE_NAMES}, got {bench_valve!r}")
-    p = pack(design, current=current, effects=effects, bench_valve=bench_valve)
+    p = pack(design, current=current, effects=effects, bench_valve=bench_valve, **(bench or {}))
     p[L.P_EX_T0] = excitation.t0
     p[L.P_EX_DT] = excitation.dt
     return cfg, p
@@ -82,12 +85,14 @@ def simulate(design: Design, excitation: Excitation, configuration: str = "modul
              current: float = 1.6, effects: dict | None = None, bench_valve: str | None = None,
              rate: float = DEFAULT_RATE, duration: float | None = None, rtol: float = DEFAULT_RTOL,
              atol: float | None = None, max_steps: int = 2_000_000, max_wall_s: float | None = 600.0,
-             h_max: float = 1e-3) -> Result:
+             h_max: float = 1e-3, bench: dict | None = None) -> Result:
     """Simulate one test. ``configuration`` is "valve" (flow bench; needs
-    ``bench_valve``), "damper" (rod fixed) or "module" (rod on the top mount).
+    ``bench_valve``), "damper" (rod fixed), "module" (rod on the top mount) or
+    "topmount" (the top mount alone, deflection prescribed).
     Outputs are sampled at ``rate`` [Hz]. A run that hits the step or
-    wall-time cap returns with ``result.ok`` False and NaN after the stop."""
-    cfg, p = _setup(design, excitation, configuration, current, effects, bench_valve)
+    wall-time cap returns with ``result.ok`` False and NaN after the stop.
+    ``bench`` sets the flow bench (``bench_volume`` [m^3], ``bench_back_pressure`` [Pa])."""
+    cfg, p = _setup(design, excitation, configuration, current, effects, bench_valve, bench)
     t_out = _time_grid(excitation, duration, rate)
     y0 = initial_state(p, cfg)
     pq = (design.pq_map.currents, design.pq_map.dps, design.pq_map.flow)
@@ -100,7 +105,7 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
                    current: float = 1.6, effects: dict | None = None, bench_valve: str | None = None,
                    rate: float = DEFAULT_RATE, duration: float | None = None, rtol: float = DEFAULT_RTOL,
                    atol: float | None = None, max_steps: int = 2_000_000, max_wall_s: float | None = None,
-                   h_max: float = 1e-3, channels: list[str] | None = None):
+                   h_max: float = 1e-3, channels: list[str] | None = None, bench: dict | None = None):
     """Run many designs (a GA population) through one test in parallel
     threads. All designs must share one active-valve map. Returns
     (time, {column: array[m, n_t]}, statuses[m]) — status 0 is ok."""
@@ -109,7 +114,7 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
     pqm = designs[0].pq_map
     if any(d.pq_map != pqm for d in designs[1:]):
         raise ValueError("simulate_batch: all designs must share one active-valve map")
-    setups = [_setup(d, excitation, configuration, current, effects, bench_valve) for d in designs]
+    setups = [_setup(d, excitation, configuration, current, effects, bench_valve, bench) for d in designs]
     cfg = setups[0][0]
     P = np.vstack([s[1] for s in setups])
     Y0 = np.vstack([initial_state(s[1], cfg) for s in setups])
@@ -117,6 +122,8 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
     names = {name: i for i, (name, _) in enumerate(L.OUTPUTS)}
     if cfg == L.CFG_VALVE:
         names = dict(_BENCH_COLUMNS)
+    elif cfg == L.CFG_TOPMOUNT:
+        names = {"displacement [m]": L.O_U, "velocity [m/s]": L.O_V, "top mount force [N]": L.O_F_TM}
     cols = list(names) if channels is None else channels
     unknown = [c for c in cols if c not in names]
     if unknown:

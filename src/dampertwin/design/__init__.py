@@ -1,9 +1,9 @@
 """Design descriptions: the 105 parameters of thesis table 5.1 (see schema)."""
 
-from .description import Constant, Design, DesignError, Parameter, PQMap, load, loads, write_map
+from .description import Constant, Design, DesignError, Parameter, PQMap, load, loads, write_map, yaml_load
 from .schema import CONSTANTS, EFFECTS, PARAMETERS, SI_UNITS, TYPES
 
 __all__ = [
-    "Constant", "Design", "DesignError", "Parameter", "PQMap", "load", "loads", "write_map",
+    "Constant", "Design", "DesignError", "Parameter", "PQMap", "load", "loads", "write_map", "yaml_load",
     "CONSTANTS", "EFFECTS", "PARAMETERS", "SI_UNITS", "TYPES",
 ]

@@ -73,6 +73,12 @@ _Loader.add_implicit_resolver(
 )
 
 
+def yaml_load(text: str):
+    """YAML with 1.2 numbers and booleans (``1e-6`` is a float, ``no`` a
+    string); used for every config file of the project."""
+    return yaml.load(text, Loader=_Loader)
+
+
 class _Dumper(yaml.SafeDumper):
     pass
 
@@ -657,4 +663,4 @@ def write_map(path: str | os.PathLike, pq: PQMap) -> None:
     Path(path).write_text("\n".join(lines) + "\n")
 
 
-__all__ = ["Design", "DesignError", "Parameter", "Constant", "PQMap", "load", "loads", "write_map"]
+__all__ = ["Design", "DesignError", "Parameter", "Constant", "PQMap", "load", "loads", "write_map", "yaml_load"]

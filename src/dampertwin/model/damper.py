@@ -21,7 +21,7 @@ from .active_valve import active_valve_flow
 from .chambers import cavitation_factor, chamber_volumes, pressure_rate, rod_force
 from .fluid import emulsion_bulk_modulus, gas_spring_pressure, series_bulk_modulus, wall_bulk_modulus
 from .layout import (
-    B_F, B_P, B_V, B_X, CFG_MODULE, CFG_SOLVER_TEST, CFG_VALVE,
+    B_F, B_P, B_V, B_X, CFG_MODULE, CFG_SOLVER_TEST, CFG_TOPMOUNT, CFG_VALVE, T_W, T_X, T_Y,
     O_A_ROD, O_DVG, O_F_D, O_F_MU, O_F_TM, O_P_B, O_P_C, O_P_R, O_P_RES, O_Q0, O_Q_A, O_Q_BP,
     O_S, O_ST_B, O_ST_C, O_ST_R, O_U, O_V, O_X0,
     P_A_B, P_A_BP, P_A_R, P_BENCH_P_DOWN, P_BENCH_V, P_BENCH_VALVE, P_CHI, P_CQ_BP, P_CURRENT,
@@ -97,6 +97,9 @@ def evaluate(t, y, p, ex, mc, md, mq, cfg, dy, out):
     if cfg == CFG_SOLVER_TEST:
         _evaluate_test_problem(t, y, p, dy, out)
         return
+    if cfg == CFG_TOPMOUNT:
+        _evaluate_top_mount(t, y, p, ex, dy, out)
+        return
     u, du = excitation_at(t, p, ex)
     module = cfg == CFG_MODULE
     if module:
@@ -169,12 +172,7 @@ def evaluate(t, y, p, ex, mc, md, mq, cfg, dy, out):
     a_rod = 0.0
     if module:
         # top mount (eq. 4.32-4.37) and rod equation of motion (eq. 4.4)
-        X = y[S_XROD]
-        xd, yd, wd = top_mount_rates(y[S_VROD], y[S_TMX], y[S_TMY], y[S_TMW], p[P_TM_R], p[P_TM_K0],
-                                     p[P_TM_K1], p[P_TM_K2], p[P_TM_C0], p[P_TM_C1], p[P_TM_C2])
-        F_tm = top_mount_force(X, y[S_TMY], wd, p[P_TM_P0], p[P_TM_P1], p[P_TM_P2], p[P_TM_Q0],
-                               p[P_TM_Q1], p[P_TM_Q2], p[P_TM_K0], p[P_TM_C0], p[P_TM_YU], p[P_TM_WU],
-                               p[P_TM_FLD0:P_TM_FLD0 + 5], p[P_E_TM_DYNAMICS] > 0.5)
+        xd, yd, wd, F_tm = _tm_force(p, y[S_XROD], y[S_VROD], y[S_TMX], y[S_TMY], y[S_TMW])
         a_rod = (F_d - F_tm) / p[P_M_ROD]
         dy[S_XROD] = y[S_VROD]
         dy[S_VROD] = a_rod
@@ -234,6 +232,31 @@ def _evaluate_bench(t, y, p, ex, dy, out):
     out[O_P_C] = P_dn
     out[O_X0] = y[B_X]
     out[O_Q0] = Q
+
+
+@njit(cache=True)
+def _tm_force(p, X, Xdot, x, y, w):
+    """Top-mount rates (eq. 4.32-4.34) and force (eq. 4.35-4.37)."""
+    xd, yd, wd = top_mount_rates(Xdot, x, y, w, p[P_TM_R], p[P_TM_K0], p[P_TM_K1], p[P_TM_K2],
+                                 p[P_TM_C0], p[P_TM_C1], p[P_TM_C2])
+    F = top_mount_force(X, y, wd, p[P_TM_P0], p[P_TM_P1], p[P_TM_P2], p[P_TM_Q0], p[P_TM_Q1], p[P_TM_Q2],
+                        p[P_TM_K0], p[P_TM_C0], p[P_TM_YU], p[P_TM_WU], p[P_TM_FLD0:P_TM_FLD0 + 5],
+                        p[P_E_TM_DYNAMICS] > 0.5)
+    return xd, yd, wd, F
+
+
+@njit(cache=True)
+def _evaluate_top_mount(t, y, p, ex, dy, out):
+    """Top-mount test bench (thesis 6.4): deflection X(t) prescribed, force out."""
+    X, Xd = excitation_at(t, p, ex)
+    xd, yd, wd, F = _tm_force(p, X, Xd, y[T_X], y[T_Y], y[T_W])
+    dyn = p[P_E_TM_DYNAMICS] > 0.5
+    dy[T_X] = xd if dyn else 0.0
+    dy[T_Y] = yd if dyn else 0.0
+    dy[T_W] = wd if dyn else 0.0
+    out[O_U] = X
+    out[O_V] = Xd
+    out[O_F_TM] = F
 
 
 @njit(cache=True)

@@ -33,7 +33,8 @@ VALVE_NAMES = ("piston_rebound", "piston_intake", "base_compression", "base_inta
 # ---- configurations
 CFG_VALVE, CFG_DAMPER, CFG_MODULE = 0, 1, 2
 CFG_SOLVER_TEST = 3  # analytic test problem for the integrator (3 states)
-CONFIGURATIONS = {"valve": CFG_VALVE, "damper": CFG_DAMPER, "module": CFG_MODULE}
+CFG_TOPMOUNT = 4  # the top mount alone, deflection X(t) prescribed (3 states)
+CONFIGURATIONS = {"valve": CFG_VALVE, "damper": CFG_DAMPER, "module": CFG_MODULE, "topmount": CFG_TOPMOUNT}
 
 # ---- state layout, damper / module configuration
 S_PR, S_PC, S_PB, S_VG = 0, 1, 2, 3
@@ -48,7 +49,10 @@ N_MODULE = 20
 B_P, B_X, B_V, B_F = 0, 1, 2, 3
 N_VALVE = 4
 
-N_STATES = {CFG_VALVE: N_VALVE, CFG_DAMPER: N_DAMPER, CFG_MODULE: N_MODULE, CFG_SOLVER_TEST: 3}
+# ---- state layout, top mount alone
+T_X, T_Y, T_W = 0, 1, 2
+
+N_STATES = {CFG_VALVE: N_VALVE, CFG_DAMPER: N_DAMPER, CFG_MODULE: N_MODULE, CFG_SOLVER_TEST: 3, CFG_TOPMOUNT: 3}
 
 # ---- output channels computed at every output time
 OUTPUTS = (

@@ -141,6 +141,8 @@ def initial_state(p: np.ndarray, cfg: int, u0: float = 0.0) -> np.ndarray:
     equilibrium, friction states zero, top mount in static equilibrium."""
     n = L.N_STATES[cfg]
     y = np.zeros(n)
+    if cfg in (L.CFG_TOPMOUNT, L.CFG_SOLVER_TEST):
+        return y
     if cfg == L.CFG_VALVE:
         y[L.B_P] = p[L.P_BENCH_P_DOWN]
         y[L.B_X] = seated_lift(p, int(p[L.P_BENCH_VALVE]))
@@ -161,6 +163,8 @@ def state_scales(cfg: int) -> np.ndarray:
         return np.array([1e5, 1e-4, 1e-1, 1.0])
     if cfg == L.CFG_SOLVER_TEST:
         return np.ones(3)
+    if cfg == L.CFG_TOPMOUNT:
+        return np.full(3, 1e-4)
     s = np.empty(L.N_STATES[cfg])
     s[L.S_PR] = s[L.S_PC] = s[L.S_PB] = 1e5  # bar
     s[L.S_VG] = 1e-5  # 10 cm^3

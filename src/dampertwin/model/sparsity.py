@@ -12,7 +12,7 @@ from . import layout as L
 def pattern(cfg: int) -> np.ndarray:
     """Boolean matrix J[i, j]: may d(dy_i)/d(y_j) be non-zero (a superset)."""
     n = L.N_STATES[cfg]
-    if cfg in (L.CFG_VALVE, L.CFG_SOLVER_TEST):
+    if cfg in (L.CFG_VALVE, L.CFG_SOLVER_TEST, L.CFG_TOPMOUNT):
         return np.ones((n, n), bool)
     J = np.zeros((n, n), bool)
     PR, PC, PB, VG = L.S_PR, L.S_PC, L.S_PB, L.S_VG

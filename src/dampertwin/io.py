@@ -1,0 +1,176 @@
+"""Measured / simulated frames on disk: Parquet (or CSV for real
+measurements), unit-suffixed columns (``force [N]``), schema checks and atomic
+writes. Metadata (synthetic flag, seed, design hash, ...) rides in the
+Parquet schema under the key ``dampertwin``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+META_KEY = b"dampertwin"
+
+# quantity -> SI unit accepted in column names
+UNITS = {
+    "time": "s", "displacement": "m", "velocity": "m/s", "force": "N", "rod acceleration": "m/s^2",
+    "current": "A", "flow": "m^3/s", "dp": "Pa", "velocity setpoint": "m/s", "frequency": "Hz",
+    "amplitude": "m", "lift": "m",
+}
+REQUIRED = {
+    "flowbench": ("time", "flow", "dp"),
+    "compliance": ("time", "displacement", "force", "current"),
+    "curving": ("time", "displacement", "force", "current"),
+    "monosine": ("time", "displacement", "force", "rod acceleration", "current"),
+    "random": ("time", "displacement", "force", "rod acceleration", "current"),
+    "training": ("time", "displacement", "force", "rod acceleration", "current"),
+    "verification": ("time", "displacement", "force", "rod acceleration", "current"),
+    "topmount": ("time", "displacement", "force"),
+}
+# shortest usable record per protocol [s] (per run where a file holds several)
+MIN_DURATION = {"flowbench": 2.0, "compliance": 0.1, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
+                "topmount": 0.02, "training": 1.0, "verification": 1.0}
+UNIFORM_TOL = 1e-3  # relative spread of the sampling interval still called uniform
+
+_COL = re.compile(r"^(?P<q>[^\[\]]+?)\s*\[(?P<u>[^\[\]]*)\]$")
+
+
+class DataError(ValueError):
+    def __init__(self, errors: list[str]):
+        self.errors = list(errors)
+        super().__init__("invalid data file:\n  - " + "\n  - ".join(self.errors))
+
+
+def column(quantity: str) -> str:
+    """Column name with its SI unit, e.g. column('force') -> 'force [N]'."""
+    return f"{quantity} [{UNITS[quantity]}]"
+
+
+def write_frame(path: str | os.PathLike, df: pd.DataFrame, meta: dict) -> Path:
+    """Write a frame as Parquet atomically (temp file + rename) with ``meta``
+    as JSON in the schema metadata. Deterministic bytes for equal input."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    md = dict(table.schema.metadata or {})
+    md.pop(b"pandas", None)
+    md[META_KEY] = json.dumps(meta, sort_keys=True, default=_json_default).encode()
+    table = table.replace_schema_metadata(md)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        pq.write_table(table, tmp, compression="zstd")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def read_meta(path: str | os.PathLike) -> dict:
+    md = pq.read_schema(path).metadata or {}
+    return json.loads(md[META_KEY]) if META_KEY in md else {}
+
+
+def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
+               current_range: tuple[float, float] | None = None) -> tuple[pd.DataFrame, dict]:
+    """Read and check a measured (or simulated) frame. ``protocol`` names the
+    test whose columns and minimum duration are required. Raises DataError
+    naming the file and the column for every problem found."""
+    path = Path(path)
+    where = str(path)
+    if protocol is not None and protocol not in REQUIRED:
+        raise DataError([f"{where}: unknown protocol {protocol!r}; expected one of {', '.join(REQUIRED)}"])
+    if not path.is_file():
+        raise DataError([f"{where}: file not found"])
+    try:
+        if path.suffix == ".parquet":
+            df = pq.read_table(path).to_pandas()
+            meta = read_meta(path)
+        elif path.suffix == ".csv":
+            df = pd.read_csv(path)
+            meta = {}
+        else:
+            raise DataError([f"{where}: unsupported file type {path.suffix!r}; expected .parquet or .csv"])
+    except DataError:
+        raise
+    except Exception as e:  # unreadable file: report it, never a raw traceback
+        raise DataError([f"{where}: cannot read: {e}"]) from None
+    errors: list[str] = []
+    qty = {}
+    for c in df.columns:
+        if c == "run":
+            continue
+        m = _COL.match(str(c))
+        if not m:
+            errors.append(f"{where}: column {c!r} has no unit; expected 'quantity [unit]' (SI)")
+            continue
+        q, u = m.group("q").strip(), m.group("u").strip()
+        if q in UNITS and u != UNITS[q]:
+            errors.append(f"{where}: column {c!r}: unit {u!r}; expected {UNITS[q]!r}")
+            continue
+        qty[q] = c
+    for q in REQUIRED.get(protocol, ("time",)):
+        if q not in qty:
+            errors.append(f"{where}: missing column {column(q)!r} (protocol {protocol})")
+    for q, c in qty.items():
+        if q in UNITS and c in df and not pd.api.types.is_numeric_dtype(df[c]):
+            errors.append(f"{where}: column {c!r} is not numeric")
+        elif c in df and not np.all(np.isfinite(df[c].to_numpy(float))):
+            bad = int(np.sum(~np.isfinite(df[c].to_numpy(float))))
+            errors.append(f"{where}: column {c!r} has {bad} NaN/inf values")
+    if errors:
+        raise DataError(errors)
+    tcol = qty["time"]
+    groups = df.groupby("run", sort=False) if "run" in df else [(None, df)]
+    for run, g in groups:
+        label = f"{where}" + (f" run {run!r}" if run is not None else "")
+        t = g[tcol].to_numpy(float)
+        dt = np.diff(t)
+        if len(t) < 2:
+            errors.append(f"{label}: column {tcol!r}: fewer than 2 samples")
+            continue
+        if np.any(dt == 0):
+            errors.append(f"{label}: column {tcol!r}: duplicated time at {t[1:][dt == 0][0]!r} s")
+        elif np.any(dt < 0):
+            errors.append(f"{label}: column {tcol!r}: time not increasing at {t[1:][dt < 0][0]!r} s")
+        elif np.ptp(dt) > UNIFORM_TOL * np.mean(dt):
+            errors.append(f"{label}: column {tcol!r}: non-uniform sampling (interval {dt.min():.3g} .. {dt.max():.3g} s); "
+                          f"a uniform grid is required")
+        if protocol is not None and t[-1] - t[0] < MIN_DURATION[protocol] * (1 - 1e-9):
+            errors.append(f"{label}: record lasts {t[-1] - t[0]:.4g} s; protocol {protocol} needs >= "
+                          f"{MIN_DURATION[protocol]:.4g} s")
+    if current_range is not None and "current" in qty:
+        cur = df[qty["current"]].to_numpy(float)
+        lo, hi = current_range
+        out = cur[(cur < lo - 1e-12) | (cur > hi + 1e-12)]
+        if len(out):
+            errors.append(f"{where}: column {qty['current']!r}: current {out[0]!r} A outside the active-valve map "
+                          f"[{lo}, {hi}] A")
+    if errors:
+        raise DataError(errors)
+    return df, meta
+
+
+def runs(df: pd.DataFrame) -> list[tuple[str | None, pd.DataFrame]]:
+    """The records of a frame, split by its 'run' column (if any)."""
+    if "run" not in df:
+        return [(None, df)]
+    return [(str(k), g.reset_index(drop=True)) for k, g in df.groupby("run", sort=False)]
+
+
+__all__ = ["DataError", "UNITS", "REQUIRED", "column", "write_frame", "read_frame", "read_meta", "runs"]

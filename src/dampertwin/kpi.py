@@ -1,0 +1,218 @@
+"""KPIs the thesis reports, each a function of a tidy frame (unit-suffixed
+columns, SI), and the table builders of thesis tables 6.5 and 6.6.
+
+Sign conventions: tube displacement positive in rebound (extension); rod
+acceleration positive up (THESIS-ERRATA 5); force positive in tension.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from scipy import signal
+
+G = 9.80665  # [m/s^2] per g
+T, X, F, A, I = "time [s]", "displacement [m]", "force [N]", "rod acceleration [m/s^2]", "current [A]"
+
+
+def _fs(t: np.ndarray) -> float:
+    return 1.0 / float(np.mean(np.diff(t)))
+
+
+def dominant_frequency(t: np.ndarray, x: np.ndarray) -> float:
+    """Frequency [Hz] of the largest spectral line of x (parabolic peak
+    interpolation on a Hann-windowed, zero-padded FFT)."""
+    n = len(x)
+    nf = 1 << int(math.ceil(math.log2(8 * n)))
+    spec = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nf))
+    k = int(np.argmax(spec[1:])) + 1
+    if 1 <= k < len(spec) - 1:
+        a, b, c = np.log(spec[k - 1:k + 2] + 1e-300)
+        k = k + 0.5 * (a - c) / (a - 2 * b + c)
+    return k * _fs(t) / nf
+
+
+def harmonic(t: np.ndarray, x: np.ndarray, f: float) -> complex:
+    """Complex amplitude of x at frequency f by least squares
+    (x ~ Re(c e^{i 2 pi f t}) + offset)."""
+    w = 2 * math.pi * f
+    M = np.column_stack([np.cos(w * t), -np.sin(w * t), np.ones_like(t)])
+    (a, b, _), *_ = np.linalg.lstsq(M, x, rcond=None)
+    return complex(a, b)
+
+
+def last_cycle(df: pd.DataFrame, f: float | None = None) -> pd.DataFrame:
+    """Rows of the last full period of the (dominant) excitation frequency."""
+    t = df[T].to_numpy()
+    f = dominant_frequency(t, df[X].to_numpy()) if f is None else f
+    return df[t >= t[-1] - 1.0 / f + 0.5 / _fs(t)]
+
+
+def tube_velocity_sign(df: pd.DataFrame, f: float) -> np.ndarray:
+    """+1 in rebound (extension), -1 in compression, from a sine fit of the
+    displacement at f (robust to sensor noise)."""
+    t = df[T].to_numpy()
+    c = harmonic(t, df[X].to_numpy(), f)
+    v = np.real(1j * 2 * math.pi * f * c * np.exp(1j * 2 * math.pi * f * t))
+    return np.where(v >= 0, 1, -1)
+
+
+def rod_acceleration_peaks(df: pd.DataFrame, frequency: float) -> dict[str, float]:
+    """Table 6.5 KPI (THESIS-ERRATA 38): signed value of max |a| of the rod
+    acceleration [g] in the rebound and in the compression half of the last
+    cycle of a mono-sine at ``frequency`` [Hz]."""
+    cyc = last_cycle(df, frequency)
+    a = cyc[A].to_numpy() / G
+    s = tube_velocity_sign(cyc, frequency)
+    out = {}
+    for name, sgn in (("rebound", 1), ("compression", -1)):
+        m = s == sgn
+        if not m.any():
+            raise ValueError(f"no {name} half-cycle in the last cycle")
+        i = np.argmax(np.abs(np.where(m, a, 0.0)))
+        out[name] = float(a[i])
+    return out
+
+
+def psd(df: pd.DataFrame, resolution: float = 2.0, column: str = A) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided Welch PSD of rod acceleration in g^2/Hz (Hann, 50 % overlap,
+    segment length fs/resolution). Returns (f [Hz], P [g^2/Hz])."""
+    t = df[T].to_numpy()
+    fs = _fs(t)
+    nper = int(round(fs / resolution))
+    x = df[column].to_numpy() / (G if column == A else 1.0)
+    if len(x) < nper:
+        raise ValueError(f"record of {len(x)} samples is shorter than one Welch segment ({nper}) at {resolution} Hz")
+    return signal.welch(x, fs=fs, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
+
+
+def psd_levels(df: pd.DataFrame, freqs=(200.0, 300.0), resolution: float = 2.0, band: float = 10.0) -> dict:
+    """Table 6.6 KPI: rod-acceleration PSD in dB re 1 g^2/Hz at each frequency,
+    the mean over a ``band`` [Hz] wide window centred on it (Welch resolution
+    ``resolution`` [Hz]); both stated in the result."""
+    f, P = psd(df, resolution)
+    out = {"resolution [Hz]": float(f[1] - f[0]), "band [Hz]": band}
+    for fc in freqs:
+        m = (f >= fc - band / 2) & (f <= fc + band / 2)
+        out[f"{fc:g} Hz [dB]"] = float(10 * np.log10(np.mean(P[m])))
+    return out
+
+
+def curving_points(df: pd.DataFrame) -> pd.DataFrame:
+    """Curving test: for each run, the peak velocity [m/s] (from a sine fit of
+    the displacement) and the peak force in rebound and compression [N] of the
+    last cycle. One row per run and direction."""
+    from .io import runs
+
+    rows = []
+    for name, g in runs(df):
+        t, x = g[T].to_numpy(), g[X].to_numpy()
+        f = dominant_frequency(t, x)
+        cyc = last_cycle(g, f)
+        v = abs(harmonic(cyc[T].to_numpy(), cyc[X].to_numpy(), f)) * 2 * math.pi * f
+        cur = float(g[I].iloc[0]) if I in g else float("nan")
+        Fc = cyc[F].to_numpy()
+        rows.append({"run": name, "current [A]": cur, "velocity [m/s]": v, "direction": "rebound",
+                     "force [N]": float(Fc.max())})
+        rows.append({"run": name, "current [A]": cur, "velocity [m/s]": v, "direction": "compression",
+                     "force [N]": float(Fc.min())})
+    return pd.DataFrame(rows)
+
+
+def hysteresis_area(df: pd.DataFrame, f: float | None = None) -> float:
+    """Area of the force-displacement loop of the last cycle, the energy the
+    damper dissipates per cycle [J] (positive for a damper)."""
+    cyc = last_cycle(df, f)
+    x, Fv = cyc[X].to_numpy(), cyc[F].to_numpy()
+    return float(np.trapezoid(np.append(Fv, Fv[0]), np.append(x, x[0])))
+
+
+def pq_curve(df: pd.DataFrame, bins: int = 40) -> pd.DataFrame:
+    """Flow-bench P-Q curve: mean dp [Pa] per flow bin [m^3/s], separately for
+    the opening (rising flow) and closing (falling flow) branches."""
+    q = df["flow [m^3/s]"].to_numpy()
+    dp = df["dp [Pa]"].to_numpy()
+    t = df[T].to_numpy()
+    qs = signal.savgol_filter(q, max(5, (int(0.05 * _fs(t)) // 2) * 2 + 1), 2)
+    dq = np.gradient(qs, t)
+    edges = np.linspace(0, np.percentile(q, 99.5), bins + 1)
+    rows = []
+    for branch, m in (("opening", dq > 0), ("closing", dq < 0)):
+        idx = np.digitize(q[m], edges) - 1
+        for b in range(bins):
+            sel = idx == b
+            if sel.sum() >= 3:
+                rows.append({"branch": branch, "flow [m^3/s]": float(q[m][sel].mean()),
+                             "dp [Pa]": float(dp[m][sel].mean())})
+    return pd.DataFrame(rows)
+
+
+def dynamic_stiffness(df: pd.DataFrame) -> pd.DataFrame:
+    """Top-mount sweeps: |K*| = |F^|/|X^| [N/m] and loss angle [deg] per run
+    from harmonic fits over all but the first cycle."""
+    from .io import runs
+
+    rows = []
+    for name, g in runs(df):
+        if not str(name).startswith("sweep"):
+            continue
+        t, x, Fv = g[T].to_numpy(), g[X].to_numpy(), g[F].to_numpy()
+        f = dominant_frequency(t, x)
+        m = t >= t[0] + 1.0 / f
+        cx, cf = harmonic(t[m], x[m], f), harmonic(t[m], Fv[m], f)
+        k = cf / cx
+        rows.append({"run": name, "frequency [Hz]": f, "amplitude [m]": abs(cx), "stiffness [N/m]": abs(k),
+                     "loss angle [deg]": math.degrees(math.atan2(k.imag, k.real))})
+    return pd.DataFrame(rows)
+
+
+# ------------------------------------------------------------ thesis tables
+def table_6_5(rows: list[dict]) -> pd.DataFrame:
+    """Thesis table 6.5 layout. Each row: no, case, current, and simulated /
+    measured rod acceleration peaks [g] at rebound and compression.
+    Diff [%] = (measured - simulated) / measured * 100."""
+    out = []
+    for r in rows:
+        out.append({
+            "no.": r["no"], "Design case": r["case"], "Active valve current [A]": r["current"],
+            "Rebound simulated [g]": r["sim_rebound"], "Rebound measured [g]": r["meas_rebound"],
+            "Rebound diff [%]": percent_diff(r["meas_rebound"], r["sim_rebound"]),
+            "Compression simulated [g]": r["sim_compression"], "Compression measured [g]": r["meas_compression"],
+            "Compression diff [%]": percent_diff(r["meas_compression"], r["sim_compression"]),
+        })
+    return pd.DataFrame(out)
+
+
+def table_6_6(rows: list[dict]) -> pd.DataFrame:
+    """Thesis table 6.6 layout: PSD of rod acceleration at 200 and 300 Hz
+    [dB re 1 g^2/Hz], Diff [dB] = simulated - measured."""
+    out = []
+    for r in rows:
+        out.append({
+            "no.": r["no"], "Design case": r["case"], "Active valve current [A]": r["current"],
+            "200 Hz simulated [dB]": r["sim_200"], "200 Hz measured [dB]": r["meas_200"],
+            "200 Hz diff [dB]": r["sim_200"] - r["meas_200"],
+            "300 Hz simulated [dB]": r["sim_300"], "300 Hz measured [dB]": r["meas_300"],
+            "300 Hz diff [dB]": r["sim_300"] - r["meas_300"],
+        })
+    return pd.DataFrame(out)
+
+
+def percent_diff(measured: float, simulated: float) -> float:
+    """(measured - simulated) / measured * 100 (thesis tables 6.5)."""
+    return (measured - simulated) / measured * 100.0
+
+
+def to_markdown(df: pd.DataFrame, digits: int = 1) -> str:
+    """A Markdown table (no extra dependency)."""
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.{digits}f}"
+        return str(v)
+
+    head = "| " + " | ".join(df.columns) + " |"
+    sep = "|" + "|".join("---" for _ in df.columns) + "|"
+    body = ["| " + " | ".join(fmt(v) for v in row) + " |" for row in df.itertuples(index=False)]
+    return "\n".join([head, sep, *body]) + "\n"

@@ -1,0 +1,227 @@
+"""Standard test protocols (thesis 2.7, 6.2-6.5, 7.2), declared in
+``conf/test/*.yaml`` and turned into runs: an excitation, the configuration,
+the active-valve current and the recording rate.
+
+``load_protocol(path)`` validates a file (one ProtocolError listing every
+problem with the file and key); ``build_runs(protocol, seed)`` makes the runs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import yaml
+
+from ..design import yaml_load
+from ..excitation import Excitation
+from ..model.layout import VALVE_NAMES
+from .signals import band_noise, sine_burst_train, triangle_ramps
+
+EXCITATION_RATE = 20_000.0  # [Hz] sampling of generated excitations
+
+
+class ProtocolError(ValueError):
+    def __init__(self, errors: list[str]):
+        self.errors = list(errors)
+        super().__init__("invalid test protocol:\n  - " + "\n  - ".join(self.errors))
+
+
+@dataclass(frozen=True)
+class Run:
+    """One simulated / measured record of a test."""
+
+    test: str
+    name: str
+    configuration: str
+    excitation: Excitation
+    current: float
+    rate: float
+    bench_valve: str | None = None
+    meta: dict = field(default_factory=dict)
+
+
+# ------------------------------------------------------------ validation
+_SCHEMA: dict[str, dict[str, Any]] = {
+    "flowbench": {"configuration": "valve", "valves": dict, "ramp_time": float, "cycles": int, "rate": float,
+                  "back_pressure": float, "volume": float},
+    "compliance": {"configuration": "damper", "amplitude": float, "velocities": list, "cycles": int,
+                   "current": float, "rate": float},
+    "topmount": {"configuration": "topmount", "random": dict, "sweep": dict, "rate": float},
+    "curving": {"configuration": "damper", "amplitude": float, "velocities": list, "currents": list,
+                "cycles": int, "rate": float},
+    "monosine": {"configuration": "module", "amplitude": float, "frequency": float, "cycles": int,
+                 "currents": list, "rate": float},
+    "random": {"configuration": "module", "duration": float, "bands": list, "currents": list,
+               "seed_offset": int, "rate": float},
+    "training": {"configuration": ("damper", "module"), "strokes": list, "velocities": list, "cycles": int,
+                 "currents": list, "rate": float},
+    "verification": {"configuration": ("damper", "module"), "duration": float, "bands": list,
+                     "currents": list, "seed_offset": int, "rate": float},
+}
+PROTOCOLS = tuple(_SCHEMA)
+
+
+def validate(doc: Any, where: str) -> dict:
+    """Check a protocol document; raise ProtocolError naming file and key."""
+    if not isinstance(doc, dict):
+        raise ProtocolError([f"{where}: expected a mapping with a 'protocol' key"])
+    name = doc.get("protocol")
+    if name not in _SCHEMA:
+        raise ProtocolError([f"{where}: unknown protocol {name!r}; expected one of {', '.join(PROTOCOLS)}"])
+    errors = []
+    for key, kind in _SCHEMA[name].items():
+        if key not in doc:
+            errors.append(f"{where}: {name}.{key} missing")
+            continue
+        v = doc[key]
+        if key == "configuration":
+            allowed = kind if isinstance(kind, tuple) else (kind,)
+            if v not in allowed:
+                errors.append(f"{where}: {name}.configuration {v!r}; expected {' or '.join(allowed)}")
+        elif kind is float:
+            if not _pos(v):
+                errors.append(f"{where}: {name}.{key} = {v!r}; expected a positive finite number (SI)")
+        elif kind is int:
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= (0 if key == "seed_offset" else 1)):
+                errors.append(f"{where}: {name}.{key} = {v!r}; expected a positive integer")
+        elif kind is list:
+            if not isinstance(v, list) or not v:
+                errors.append(f"{where}: {name}.{key} must be a non-empty list")
+            elif key != "bands" and not all(_pos(x) for x in v):
+                errors.append(f"{where}: {name}.{key} = {v!r}; expected positive finite numbers (SI)")
+        elif kind is dict and not isinstance(v, dict):
+            errors.append(f"{where}: {name}.{key} must be a mapping")
+    for k in doc:
+        if k != "protocol" and k not in _SCHEMA[name]:
+            errors.append(f"{where}: {name}.{k}: unknown key; expected {', '.join(_SCHEMA[name])}")
+    for key in ("bands",):
+        for i, b in enumerate(doc.get(key, []) if isinstance(doc.get(key), list) else []):
+            if not (isinstance(b, dict) and isinstance(b.get("band"), list) and len(b["band"]) == 2
+                    and all(_pos(x) for x in b["band"]) and b["band"][0] < b["band"][1] and _pos(b.get("rms"))):
+                errors.append(f"{where}: {name}.bands[{i}] must be {{band: [f_lo, f_hi] Hz, rms: m}}, got {b!r}")
+    if name == "flowbench" and isinstance(doc.get("valves"), dict):
+        for k, v in doc["valves"].items():
+            if k not in VALVE_NAMES:
+                errors.append(f"{where}: flowbench.valves.{k}: unknown valve; expected {', '.join(VALVE_NAMES)}")
+            elif not (isinstance(v, dict) and _pos(v.get("q_max"))):
+                errors.append(f"{where}: flowbench.valves.{k}.q_max must be a positive flow in m^3/s")
+    if errors:
+        raise ProtocolError(errors)
+    return doc
+
+
+def _pos(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+
+
+def load_protocol(path: str | Path) -> dict:
+    path = Path(path)
+    if not path.is_file():
+        raise ProtocolError([f"{path}: file not found"])
+    try:
+        doc = yaml_load(path.read_text())
+    except yaml.YAMLError as e:
+        raise ProtocolError([f"{path}: not valid YAML: {e}"]) from None
+    return validate(doc, str(path))
+
+
+# ------------------------------------------------------------ builders
+def _flowbench(c, seed):
+    runs = []
+    for valve, v in c["valves"].items():
+        ex = triangle_ramps(v["q_max"], c["ramp_time"], c["cycles"], sample_rate=1000.0)
+        runs.append(Run("flowbench", valve, "valve", ex, 0.0, c["rate"], valve,
+                        {"q_max [m^3/s]": v["q_max"], "ramp_time [s]": c["ramp_time"],
+                         "back_pressure [Pa]": c["back_pressure"], "volume [m^3]": c["volume"]}))
+    return runs
+
+
+def _sines(test, c, currents, velocities, amplitude_of):
+    runs = []
+    for I in currents:
+        for v in velocities:
+            A = amplitude_of(v)
+            f = v / (2 * math.pi * A)
+            ex = Excitation.sine(A, f, c["cycles"] / f, sample_rate=max(EXCITATION_RATE, 200 * f))
+            runs.append(Run(test, f"v{v:g}_I{I:g}", c["configuration"], ex, float(I), c["rate"], None,
+                            {"velocity [m/s]": float(v), "amplitude [m]": A, "frequency [Hz]": f,
+                             "cycles": c["cycles"]}))
+    return runs
+
+
+def _compliance(c, seed):
+    return _sines("compliance", c, [c["current"]], c["velocities"], lambda v: c["amplitude"])
+
+
+def _curving(c, seed):
+    return _sines("curving", c, c["currents"], c["velocities"], lambda v: c["amplitude"])
+
+
+def _monosine(c, seed):
+    A, f = c["amplitude"], c["frequency"]
+    return [Run("monosine", f"I{I:g}", "module", Excitation.sine(A, f, c["cycles"] / f), float(I), c["rate"], None,
+                {"amplitude [m]": A, "frequency [Hz]": f, "cycles": c["cycles"]}) for I in c["currents"]]
+
+
+def _noise_runs(test, c, seed):
+    ex = band_noise(c["bands"], c["duration"], seed + c["seed_offset"], sample_rate=max(c["rate"], 2000.0))
+    return [Run(test, f"I{I:g}", c["configuration"], ex, float(I), c["rate"], None,
+                {"duration [s]": c["duration"], "seed": seed + c["seed_offset"]}) for I in c["currents"]]
+
+
+def _random(c, seed):
+    return _noise_runs("random", c, seed)
+
+
+def _verification(c, seed):
+    return _noise_runs("verification", c, seed)
+
+
+def _training(c, seed):
+    segments = [(s / 2, v) for s in c["strokes"] for v in c["velocities"]]
+    ex = sine_burst_train(segments, c["cycles"])
+    return [Run("training", f"I{I:g}", c["configuration"], ex, float(I), c["rate"], None,
+                {"segments": len(segments)}) for I in c["currents"]]
+
+
+def _topmount(c, seed):
+    r = c["random"]
+    runs = [Run("topmount", "random", "topmount",
+                band_noise(r["bands"], r["duration"], seed + r.get("seed_offset", 0), sample_rate=c["rate"]),
+                0.0, c["rate"], None, {"duration [s]": r["duration"]})]
+    s = c["sweep"]
+    for A in s["amplitudes"]:
+        for f in s["frequencies"]:
+            if A >= s["large_amplitude"] and f > s["max_frequency_large"]:
+                continue
+            ex = Excitation.sine(A, f, s["cycles"] / f, sample_rate=max(EXCITATION_RATE, 200 * f))
+            runs.append(Run("topmount", f"sweep_A{A:g}_f{f:g}", "topmount", ex, 0.0, max(c["rate"], 50 * f), None,
+                            {"amplitude [m]": A, "frequency [Hz]": f, "cycles": s["cycles"]}))
+    return runs
+
+
+_BUILDERS: dict[str, Callable] = {
+    "flowbench": _flowbench, "compliance": _compliance, "topmount": _topmount, "curving": _curving,
+    "monosine": _monosine, "random": _random, "training": _training, "verification": _verification,
+}
+
+
+def build_runs(protocol: dict, seed: int = 0) -> list[Run]:
+    """The runs of a validated protocol; random signals derive from ``seed``."""
+    validate(protocol, f"<{protocol.get('protocol') if isinstance(protocol, dict) else protocol}>")
+    return _BUILDERS[protocol["protocol"]](protocol, int(seed))
+
+
+def load_all(conf_dir: str | Path) -> dict[str, dict]:
+    """Every protocol in ``conf_dir`` (conf/test), keyed by protocol name."""
+    out = {}
+    for f in sorted(Path(conf_dir).glob("*.yaml")):
+        doc = load_protocol(f)
+        out[doc["protocol"]] = doc
+    return out
+
+
+__all__ = ["Run", "ProtocolError", "PROTOCOLS", "load_protocol", "validate", "build_runs", "load_all"]
