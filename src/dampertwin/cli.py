@@ -57,7 +57,22 @@ def main(argv: list[str] | None = None) -> int:
     show.add_argument("--type", choices=TYPES, help="only parameters of this type")
     chk = dsub.add_parser("check", help="validate a design file; exit 1 listing every problem")
     chk.add_argument("path")
+    plot = sub.add_parser("plot", help="PNG plots of one design case: P-Q, F-V / F-x, mono-sine, PSD")
+    plot.add_argument("case", help="design case, a file name of conf/variant/ (e.g. baseline_1.6)")
+    plot.add_argument("--data", default="data/measured", help="measured data folder")
+    plot.add_argument("--out", default="results/plots", help="output folder (PNG files go to OUT/CASE/)")
+    plot.add_argument("--conf", default="conf", help="configuration folder")
     args = ap.parse_args(argv)
+    if args.cmd == "plot":
+        from .plotting import plot_case
+
+        try:
+            for p in plot_case(args.case, Path(args.conf), Path(args.data), Path(args.out)):
+                print(p)
+        except (FileNotFoundError, ValueError) as e:
+            print(f"dampertwin plot: {e}", file=sys.stderr)
+            return 1
+        return 0
 
     try:
         design = load(args.path)

@@ -60,10 +60,13 @@ class Excitation:
         return cls(0.0, 1.0 / sample_rate, u, du)
 
     @classmethod
-    def from_samples(cls, t, x, kind: str = "displacement") -> "Excitation":
+    def from_samples(cls, t, x, kind: str = "displacement", cutoff: float | None = None) -> "Excitation":
         """From a recorded signal on a uniform time grid (e.g. the measured
-        actuator displacement); the rate is the cubic-spline derivative."""
+        actuator displacement); the rate is the cubic-spline derivative.
+        ``cutoff`` [Hz] applies a zero-phase 4th-order Butterworth low-pass
+        first, so sensor noise is not differentiated into the input."""
         from scipy.interpolate import CubicSpline
+        from scipy.signal import butter, sosfiltfilt
 
         t = np.asarray(t, float)
         x = np.asarray(x, float)
@@ -72,6 +75,10 @@ class Excitation:
         dt = np.diff(t)
         if not np.all(dt > 0) or np.ptp(dt) > 1e-6 * dt.mean():
             raise ValueError("time must be strictly increasing on a uniform grid")
+        fs = 1.0 / dt.mean()
+        if cutoff is not None and cutoff < 0.45 * fs:
+            pad = min(len(x) - 1, int(10 * fs / cutoff))  # odd extension long enough for the edge transient
+            x = sosfiltfilt(butter(4, cutoff, fs=fs, output="sos"), x, padlen=pad)
         return cls(float(t[0]), float(dt.mean()), x, CubicSpline(t, x)(t, 1), kind)
 
     @classmethod

@@ -22,8 +22,25 @@ def _fs(t: np.ndarray) -> float:
 
 
 def dominant_frequency(t: np.ndarray, x: np.ndarray) -> float:
-    """Frequency [Hz] of the largest spectral line of x (parabolic peak
-    interpolation on a Hann-windowed, zero-padded FFT)."""
+    """Frequency [Hz] of the largest spectral line of x: a zero-padded FFT
+    peak, refined by the best least-squares sine fit around it (exact for a
+    clean sine even over few cycles)."""
+    from scipy.optimize import minimize_scalar
+
+    f0 = _fft_peak(t, x)
+
+    def resid(f):
+        w = 2 * math.pi * f
+        M = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones_like(t)])
+        r = x - M @ np.linalg.lstsq(M, x, rcond=None)[0]
+        return float(r @ r)
+
+    res = minimize_scalar(resid, bounds=(0.9 * f0, 1.1 * f0), method="bounded", options={"xatol": 1e-9 * f0})
+    return float(res.x)
+
+
+def _fft_peak(t: np.ndarray, x: np.ndarray) -> float:
+    """Parabolic-interpolated peak of a Hann-windowed, zero-padded FFT [Hz]."""
     n = len(x)
     nf = 1 << int(math.ceil(math.log2(8 * n)))
     spec = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nf))

@@ -50,6 +50,8 @@ def excitation_at(t, p, ex):
         return ex[0, 0], ex[1, 0]
     k = int(r)
     if k >= n - 1:
+        if r <= n - 1 + 1e-9:  # the last sample itself
+            return ex[0, n - 1], ex[1, n - 1]
         return ex[0, n - 1], 0.0
     s = r - k
     s2 = s * s

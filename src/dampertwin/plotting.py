@@ -1,0 +1,82 @@
+"""``dampertwin plot CASE``: the standard plots of one design case, simulated
+with the nominal design of the case and overlaid on the measurements."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+
+from . import report
+from .design import load as load_design
+from .io import read_frame, runs
+from .protocols import build_runs, load_all
+from .variants import VALVE_DESIGNS, load_variant
+
+CURVING_VELOCITIES = (0.1, 0.3, 0.5, 1.0, 1.5)  # subset of the protocol, for speed
+
+
+def _maybe(path: Path, protocol: str):
+    return read_frame(path, protocol)[0] if path.is_file() else None
+
+
+def plot_case(case: str, conf: Path, data: Path, out: Path) -> list[Path]:
+    vpath = conf / "variant" / f"{case}.yaml"
+    if not vpath.is_file():
+        known = ", ".join(sorted(p.stem for p in (conf / "variant").glob("*.yaml")))
+        raise FileNotFoundError(f"no design case {case!r} ({vpath} missing); known: {known}")
+    variant = load_variant(vpath)
+    design = variant.apply(load_design(conf / "design" / "baseline.yaml"))
+    protocols = load_all(conf / "test")
+    out = out / case
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+
+    def save(fig, name):
+        p = out / f"{name}.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        written.append(p)
+
+    # P-Q curves: the valves of this case (alternative valves where the case changes them)
+    fb = protocols["flowbench"]
+    meas, sim = {}, {}
+    for run in build_runs(fb):
+        valve = run.bench_valve
+        vd = next((n for n, (v, c) in VALVE_DESIGNS.items() if v == valve and c == case), valve)
+        meas_df = _maybe(data / "flowbench" / f"{vd}.parquet", "flowbench")
+        if meas_df is not None:
+            meas[valve] = meas_df
+        r = report.simulate(design, run.excitation, "valve", bench_valve=valve, rate=run.rate,
+                            bench={"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]})
+        sim[valve] = r.to_frame()
+    save(report.pq_figure(meas, sim, f"{case}: flow-bench P-Q (solid measured, dashed simulated)"), "pq")
+
+    # F-V and F-x at the three currents
+    res = {}
+    for run in build_runs(protocols["curving"]):
+        if run.meta["velocity [m/s]"] in CURVING_VELOCITIES:
+            r = report.simulate(design, run.excitation, "damper", current=run.current, rate=run.rate)
+            res.setdefault(run.current, []).append((run.name, report.frame(r)))
+    base_curving = _maybe(data / "curving" / "baseline.parquet", "curving")
+    save(report.curving_figure(res, base_curving, f"{case}: curving test (solid: measured baseline)"), "curving")
+
+    # mono-sine, driven by the recorded displacement when a measurement exists
+    ms = _maybe(data / "monosine" / f"{case}.parquet", "monosine")
+    f = protocols["monosine"]["frequency"]
+    if ms is not None:
+        sim_ms = report.simulate_from_record(design, runs(ms)[0][1], "module", variant.current)
+    else:
+        run = next(r for r in build_runs(protocols["monosine"]) if abs(r.current - variant.current) < 1e-9)
+        sim_ms = report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate)
+    save(report.monosine_figure(sim_ms, ms, f, f"{case}: 13 Hz mono-sine at {variant.current:g} A"), "monosine")
+
+    # random road noise PSD
+    rnd = _maybe(data / "random" / f"{case}.parquet", "random")
+    if rnd is not None:
+        sim_r = report.frame(report.simulate_from_record(design, runs(rnd)[0][1], "module", variant.current))
+    else:
+        run = next(r for r in build_runs(protocols["random"], 0) if abs(r.current - variant.current) < 1e-9)
+        sim_r = report.frame(report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate))
+    save(report.psd_figure(sim_r, rnd, f"{case}: random road noise at {variant.current:g} A"), "psd")
+    return written

@@ -1,0 +1,142 @@
+"""Plots an engineer would rather look at than read: P-Q curves, F-V and
+F-x loops, mono-sine rod acceleration with valve openings, random-test PSD.
+Functions take frames / designs and return matplotlib Figures (callers save).
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from . import kpi  # noqa: E402
+from .design import Design  # noqa: E402
+from .excitation import Excitation  # noqa: E402
+from .simulation import simulate  # noqa: E402
+
+VALVE_LABELS = {"piston_rebound": "piston rebound (shim)", "piston_intake": "piston intake",
+                "base_compression": "base compression (shim)", "base_intake": "base intake"}
+VALVE_COLOURS = {"piston_rebound": "tab:red", "piston_intake": "tab:orange", "base_compression": "tab:blue",
+                 "base_intake": "tab:cyan"}
+LPM = 60000.0  # m^3/s -> l/min
+
+
+def pq_figure(measured: dict[str, pd.DataFrame], simulated: dict[str, pd.DataFrame], title: str):
+    """P-Q curves per valve: measured (opening / closing) and simulated."""
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7.5), constrained_layout=True)
+    for ax, valve in zip(axes.flat, VALVE_LABELS):
+        for src, frames, style in (("measured", measured, "-"), ("simulated", simulated, "--")):
+            if valve not in frames:
+                continue
+            pq_ = kpi.pq_curve(frames[valve])
+            for branch, alpha in (("opening", 1.0), ("closing", 0.55)):
+                b = pq_[pq_.branch == branch]
+                ax.plot(b["flow [m^3/s]"] * LPM, b["dp [Pa]"] / 1e5, style, color=VALVE_COLOURS[valve], alpha=alpha,
+                        label=f"{src}, {branch}")
+        ax.set(title=VALVE_LABELS[valve], xlabel="flow [l/min]", ylabel="pressure drop [bar]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(title)
+    return fig
+
+
+def curving_figure(results: dict[float, list[tuple[str, pd.DataFrame]]], measured: pd.DataFrame | None, title: str):
+    """Force-velocity (peak points) and force-displacement loops at each current."""
+    fig, (ax_v, ax_x) = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
+    colours = {0.32: "tab:green", 0.9: "tab:orange", 1.6: "tab:red"}
+    for cur, runs in sorted(results.items()):
+        c = colours.get(cur, None)
+        sim = pd.concat([g.assign(run=n) for n, g in runs])
+        pts = kpi.curving_points(sim).sort_values("velocity [m/s]")
+        for d in ("rebound", "compression"):
+            p = pts[pts.direction == d]
+            ax_v.plot(p["velocity [m/s]"] * (1 if d == "rebound" else -1), p["force [N]"], "--o", color=c, ms=3,
+                      label=f"simulated {cur:g} A" if d == "rebound" else None)
+        name, g = runs[-1]
+        cyc = kpi.last_cycle(g)
+        xs, fs_ = cyc["displacement [m]"].to_numpy(), cyc["force [N]"].to_numpy()
+        ax_x.plot(np.append(xs, xs[0]) * 1e3, np.append(fs_, fs_[0]), "--", color=c, label=f"simulated {cur:g} A, {name}")
+    if measured is not None:
+        mp = kpi.curving_points(measured)
+        for cur, grp in mp.groupby("current [A]"):
+            for d in ("rebound", "compression"):
+                p = grp[grp.direction == d].sort_values("velocity [m/s]")
+                ax_v.plot(p["velocity [m/s]"] * (1 if d == "rebound" else -1), p["force [N]"], "-s",
+                          color=colours.get(cur), ms=3, label=f"measured {cur:g} A" if d == "rebound" else None)
+    ax_v.set(xlabel="velocity [m/s] (+ rebound)", ylabel="force [N] (+ tension)", title="force-velocity")
+    ax_x.set(xlabel="displacement [mm]", ylabel="force [N]", title="force-displacement (fastest run)")
+    for ax in (ax_v, ax_x):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(title)
+    return fig
+
+
+def monosine_figure(sim, measured: pd.DataFrame | None, frequency: float, title: str):
+    """Rod acceleration of the last 1.5 cycles with each valve's open
+    intervals marked (simulated lifts), measured overlaid."""
+    fig, (ax, axv) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, height_ratios=[3, 1], constrained_layout=True)
+    t = sim.time
+    m = t >= t[-1] - 1.5 / frequency
+    ax.plot(t[m], sim["rod acceleration [m/s^2]"][m] / kpi.G, color="k", lw=0.8, label="simulated")
+    if measured is not None:
+        tm = measured["time [s]"].to_numpy()
+        mm = tm >= tm[-1] - 1.5 / frequency
+        ax.plot(tm[mm], measured["rod acceleration [m/s^2]"].to_numpy()[mm] / kpi.G, color="tab:purple", lw=0.8,
+                alpha=0.7, label="measured")
+    for k, (valve, lab) in enumerate(VALVE_LABELS.items()):
+        lift = sim[f"lift {valve} [m]"][m]
+        axv.fill_between(t[m], k, k + 0.8 * (lift > 0), color=VALVE_COLOURS[valve], step="mid", label=lab)
+        opens = t[m][1:][(lift[1:] > 0) & (lift[:-1] <= 0)]
+        for to in opens:
+            ax.axvline(to, color=VALVE_COLOURS[valve], ls=":", lw=1)
+    ax.set(ylabel="rod acceleration [g] (+ up)", title=title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    axv.set(yticks=[0.4, 1.4, 2.4, 3.4], yticklabels=[v.replace("_", " ") for v in VALVE_LABELS], xlabel="time [s]")
+    axv2 = axv.twinx()
+    axv2.plot(t[m], sim["velocity [m/s]"][m], color="0.5", lw=0.8)
+    axv2.set_ylabel("tube velocity [m/s]")
+    return fig
+
+
+def psd_figure(sim_df: pd.DataFrame, measured: pd.DataFrame | None, title: str):
+    fig, ax = plt.subplots(figsize=(9, 5), constrained_layout=True)
+    for label, df, c in (("simulated", sim_df, "k"), ("measured", measured, "tab:purple")):
+        if df is None:
+            continue
+        f, P = kpi.psd(df)
+        ax.semilogx(f[1:], 10 * np.log10(P[1:]), color=c, lw=0.9, label=label)
+    for fc in (200, 300):
+        ax.axvline(fc, color="tab:red", ls=":", lw=1)
+    ax.set(xlim=(5, 1000), xlabel="frequency [Hz]", ylabel="PSD of rod acceleration [dB re 1 g^2/Hz]", title=title)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend()
+    return fig
+
+
+RECORD_CUTOFF = 1000.0  # [Hz] low-pass of recorded displacements used as inputs
+
+
+def simulate_from_record(design: Design, df: pd.DataFrame, configuration: str, current: float,
+                         cutoff: float = RECORD_CUTOFF, **kw):
+    """Simulate a test driven by the recorded displacement of a measurement
+    (thesis 6.5), low-passed at ``cutoff`` [Hz], on the record's time grid."""
+    t = df["time [s]"].to_numpy()
+    ex = Excitation.from_samples(t, df["displacement [m]"].to_numpy(), cutoff=cutoff)
+    return simulate(design, ex, configuration, current=current, rate=1.0 / float(np.mean(np.diff(t))), **kw)
+
+
+def frame(result) -> pd.DataFrame:
+    f = result.to_frame()
+    if "top mount force [N]" in f:
+        f["force [N]"] = f["top mount force [N]"]
+    elif "rod force [N]" in f:
+        f["force [N]"] = f["rod force [N]"]
+    return f
+
+
+__all__ = ["pq_figure", "curving_figure", "monosine_figure", "psd_figure", "simulate_from_record", "frame"]
