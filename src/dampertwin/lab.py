@@ -10,6 +10,9 @@ isolated conditions (degassed oil, low flow acceleration). Every file says
 ``synthetic: true`` in its metadata.
 
 Only this module and the tests read ``conf/lab/``; calibration never does.
+The samples were built from ``conf/lab/nominal.yaml``, a frozen copy of the
+baseline drawings: editing ``conf/design/baseline.yaml`` changes the model,
+not the parts on the lab's shelf.
 """
 
 from __future__ import annotations
@@ -143,7 +146,7 @@ def generate(conf: str | Path, out: str | Path, seed: int, only: list[tuple[str,
 
     conf, out = Path(conf), Path(out)
     sample = load_sample(conf / "lab" / "sample.yaml")
-    baseline = load_design(conf / "design" / "baseline.yaml")
+    baseline = load_design(conf / "lab" / "nominal.yaml")  # the drawings the samples were built from
     variants = {v.case: v for v in load_variants(conf / "variant")}
     protocols = load_all(conf / "test")
     items = plan(conf) if only is None else only
