@@ -35,7 +35,7 @@ REQUIRED = {
     "topmount": ("time", "displacement", "force"),
 }
 # shortest usable record per protocol [s] (per run where a file holds several)
-MIN_DURATION = {"flowbench": 2.0, "compliance": 0.1, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
+MIN_DURATION = {"flowbench": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
                 "topmount": 0.02, "training": 1.0, "verification": 1.0}
 UNIFORM_TOL = 1e-3  # relative spread of the sampling interval still called uniform
 

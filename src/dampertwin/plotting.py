@@ -69,7 +69,7 @@ def plot_case(case: str, conf: Path, data: Path, out: Path) -> list[Path]:
     else:
         run = next(r for r in build_runs(protocols["monosine"]) if abs(r.current - variant.current) < 1e-9)
         sim_ms = report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate)
-    save(report.monosine_figure(sim_ms, ms, f, f"{case}: 13 Hz mono-sine at {variant.current:g} A"), "monosine")
+    save(report.monosine_figure(sim_ms.to_frame(), ms, f, f"{case}: 13 Hz mono-sine at {variant.current:g} A"), "monosine")
 
     # random road noise PSD
     rnd = _maybe(data / "random" / f"{case}.parquet", "random")

@@ -75,20 +75,21 @@ def curving_figure(results: dict[float, list[tuple[str, pd.DataFrame]]], measure
     return fig
 
 
-def monosine_figure(sim, measured: pd.DataFrame | None, frequency: float, title: str):
+def monosine_figure(sim: pd.DataFrame, measured: pd.DataFrame | None, frequency: float, title: str):
     """Rod acceleration of the last 1.5 cycles with each valve's open
-    intervals marked (simulated lifts), measured overlaid."""
+    intervals marked (simulated lifts), measured overlaid. ``sim`` is a
+    simulated frame with time, rod acceleration, displacement and lifts."""
     fig, (ax, axv) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, height_ratios=[3, 1], constrained_layout=True)
-    t = sim.time
+    t = sim["time [s]"].to_numpy()
     m = t >= t[-1] - 1.5 / frequency
-    ax.plot(t[m], sim["rod acceleration [m/s^2]"][m] / kpi.G, color="k", lw=0.8, label="simulated")
+    ax.plot(t[m], sim["rod acceleration [m/s^2]"].to_numpy()[m] / kpi.G, color="k", lw=0.8, label="simulated")
     if measured is not None:
         tm = measured["time [s]"].to_numpy()
         mm = tm >= tm[-1] - 1.5 / frequency
         ax.plot(tm[mm], measured["rod acceleration [m/s^2]"].to_numpy()[mm] / kpi.G, color="tab:purple", lw=0.8,
                 alpha=0.7, label="measured")
     for k, (valve, lab) in enumerate(VALVE_LABELS.items()):
-        lift = sim[f"lift {valve} [m]"][m]
+        lift = sim[f"lift {valve} [m]"].to_numpy()[m]
         axv.fill_between(t[m], k, k + 0.8 * (lift > 0), color=VALVE_COLOURS[valve], step="mid", label=lab)
         opens = t[m][1:][(lift[1:] > 0) & (lift[:-1] <= 0)]
         for to in opens:
@@ -98,7 +99,8 @@ def monosine_figure(sim, measured: pd.DataFrame | None, frequency: float, title:
     ax.legend(fontsize=8)
     axv.set(yticks=[0.4, 1.4, 2.4, 3.4], yticklabels=[v.replace("_", " ") for v in VALVE_LABELS], xlabel="time [s]")
     axv2 = axv.twinx()
-    axv2.plot(t[m], sim["velocity [m/s]"][m], color="0.5", lw=0.8)
+    vel = np.gradient(sim["displacement [m]"].to_numpy(), t)
+    axv2.plot(t[m], vel[m], color="0.5", lw=0.8)
     axv2.set_ylabel("tube velocity [m/s]")
     return fig
 

@@ -240,7 +240,9 @@ class Design:
             pindex[no]["value"] = _plain(val)
         if errors:
             raise DesignError(errors)
-        return _from_doc(doc, self.path, base_dir=self.path.parent if self.path else Path.cwd())
+        keep_map = not any(_is_map_key(k) for k in overrides)
+        return _from_doc(doc, self.path, base_dir=self.path.parent if self.path else Path.cwd(),
+                         known_map=self.pq_map if keep_map else None)
 
     # ---- output -----------------------------------------------------------
     def _doc(self, rel_to: Path | None) -> dict:
@@ -369,7 +371,15 @@ def _is_num(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = None) -> Design:
+def _is_map_key(key) -> bool:
+    try:
+        return _resolve_name(key) == 52 if isinstance(key, str) else int(key) == 52
+    except (TypeError, ValueError):
+        return False
+
+
+def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = None,
+              known_map: PQMap | None = None) -> Design:
     where = where or (str(path) if path else "<design>")
     errors: list[str] = []
     if not isinstance(doc, dict):
@@ -386,7 +396,7 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
         errors.append(f"{where}: 'description' must be a string")
         description = str(description)
 
-    params, pq_map = _parse_parameters(doc.get("parameters"), where, base_dir, errors)
+    params, pq_map = _parse_parameters(doc.get("parameters"), where, base_dir, errors, known_map)
     constants = _parse_constants(doc.get("constants"), where, errors)
     effects = _parse_effects(doc.get("effects"), where, errors)
     if errors:
@@ -402,7 +412,7 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
     )
 
 
-def _parse_parameters(items, where, base_dir, errors) -> tuple[dict[int, Parameter], PQMap | None]:
+def _parse_parameters(items, where, base_dir, errors, known_map=None) -> tuple[dict[int, Parameter], PQMap | None]:
     out: dict[int, Parameter] = {}
     pq_map = None
     if not isinstance(items, list):
@@ -460,7 +470,7 @@ def _parse_parameters(items, where, base_dir, errors) -> tuple[dict[int, Paramet
                 errors.append(f"{label}: value must be the file name of the P/Q map CSV, got {value!r}")
             else:
                 map_path = Path(value) if os.path.isabs(value) else base_dir / value
-                pq_map = _read_map(map_path, label, errors)
+                pq_map = known_map if known_map is not None else _read_map(map_path, label, errors)
         else:
             value = _check_value(value, spec, label, errors)
             bounds = _check_bounds(bounds, ptype, value, spec, label, errors)

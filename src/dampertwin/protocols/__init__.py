@@ -18,7 +18,7 @@ import yaml
 from ..design import yaml_load
 from ..excitation import Excitation
 from ..model.layout import VALVE_NAMES
-from .signals import band_noise, sine_burst_train, triangle_ramps
+from .signals import band_noise, sine_burst_train, triangle_ramps, triangle_wave
 
 EXCITATION_RATE = 20_000.0  # [Hz] sampling of generated excitations
 
@@ -49,7 +49,7 @@ _SCHEMA: dict[str, dict[str, Any]] = {
                   "back_pressure": float, "volume": float},
     "compliance": {"configuration": "damper", "amplitude": float, "velocities": list, "cycles": int,
                    "current": float, "rate": float},
-    "topmount": {"configuration": "topmount", "random": dict, "sweep": dict, "rate": float},
+    "topmount": {"configuration": "topmount", "static": dict, "random": dict, "sweep": dict, "rate": float},
     "curving": {"configuration": "damper", "amplitude": float, "velocities": list, "currents": list,
                 "cycles": int, "rate": float},
     "monosine": {"configuration": "module", "amplitude": float, "frequency": float, "cycles": int,
@@ -188,8 +188,11 @@ def _training(c, seed):
 
 
 def _topmount(c, seed):
+    st = c["static"]
+    runs = [Run("topmount", "static", "topmount", triangle_wave(st["amplitude"], st["period"], st["cycles"]), 0.0,
+                st["rate"], None, {"amplitude [m]": st["amplitude"], "period [s]": st["period"]})]
     r = c["random"]
-    runs = [Run("topmount", "random", "topmount",
+    runs += [Run("topmount", "random", "topmount",
                 band_noise(r["bands"], r["duration"], seed + r.get("seed_offset", 0), sample_rate=c["rate"]),
                 0.0, c["rate"], None, {"duration [s]": r["duration"]})]
     s = c["sweep"]

@@ -24,6 +24,18 @@ def triangle_ramps(q_max: float, ramp_time: float, cycles: int, sample_rate: flo
     return Excitation(0.0, 1.0 / sample_rate, q, rate, "flow")
 
 
+def triangle_wave(amplitude: float, period: float, cycles: int, sample_rate: float = 1000.0) -> Excitation:
+    """Quasi-static displacement [m]: 0 -> +A -> -A -> 0 at constant speed,
+    ``cycles`` times (static load-deflection measurement)."""
+    t = np.arange(0.0, period * cycles + 0.5 / sample_rate, 1.0 / sample_rate)
+    ph = np.mod(t / period + 0.25, 1.0)  # 0.25 at t = 0: start at zero going up
+    tri = np.where(ph < 0.5, 4 * ph - 1, 3 - 4 * ph)
+    rate = np.where(ph < 0.5, 4.0, -4.0) * amplitude / period
+    corner = np.isclose(np.mod(ph, 0.5), 0.0)
+    rate[corner] = 0.0
+    return Excitation(0.0, 1.0 / sample_rate, amplitude * tri, rate)
+
+
 def band_noise(bands: list[dict], duration: float, seed: int, sample_rate: float) -> Excitation:
     """Gaussian displacement [m] whose spectrum is flat inside each band
     (``{band: [f_lo, f_hi], rms: m}``) with that band's rms, built in the

@@ -1,0 +1,1 @@
+"""Calibration: GA fits (pygad) of the thesis approaches."""

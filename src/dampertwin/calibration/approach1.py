@@ -1,0 +1,163 @@
+"""Calibration approach 1 (thesis chapter 6): isolated subsystem fits.
+
+- valves on the flow bench, eq. 6.1: J = int |dp_test - dp_sim| dt,
+  stiffness a, b, c, d and shim friction (table 6.1), GA table 6.2;
+- compliance on the damper-level sine test, eq. 6.2: J = int |F_test - F_sim| dt,
+  gas content and oil bulk modulus, GA table 6.3;
+- top mount on its random record, eq. 6.3, parameters and limits of table
+  6.4; the static curve by least squares (5th-order polynomial, thesis 7.2).
+
+Every simulation is driven by the recorded input of the measurement (thesis
+6.5), low-passed so sensor noise is not differentiated. No file I/O here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ..design import Design
+from ..excitation import Excitation
+from ..io import runs
+from ..simulation import simulate_batch
+from .ga import Evaluator, FitResult, GASettings, ParamSpec, run_ga
+
+SHIM_VALVES = ("piston_rebound", "base_compression")
+
+
+def integral_abs_error(t: np.ndarray, measured: np.ndarray, simulated: np.ndarray) -> float:
+    """int |measured - simulated| dt (eq. 6.1 - 6.3), trapezoidal; NaN if the
+    simulation is incomplete."""
+    e = np.abs(measured - simulated)
+    if not np.all(np.isfinite(e)):
+        return float("nan")
+    return float(np.trapezoid(e, t))
+
+
+def specs_from_config(design: Design, items: list, prefix: str = "") -> list[ParamSpec]:
+    """Search space: each item names a parameter and either absolute
+    ``bounds`` or a ``window`` of factors on the nominal value; windows are
+    clipped to the design's calibration bounds (thesis tables 6.1 / 6.4)."""
+    specs = []
+    for it in items:
+        key = prefix + it["name"] if prefix else it["key"]
+        p = design.param(key) if not key.startswith("constants.") else None
+        if "bounds" in it:
+            lo, hi = map(float, it["bounds"])
+        else:
+            v = design[key]
+            a, b = (float(f) * v for f in it["window"])
+            lo, hi = min(a, b), max(a, b)
+            if p is not None and p.bounds is not None:
+                lo, hi = max(lo, p.bounds[0]), min(hi, p.bounds[1])
+        if not lo < hi:
+            raise ValueError(f"empty search interval for {key}: [{lo}, {hi}]")
+        specs.append(ParamSpec(key, lo, hi, it.get("scale", "lin")))
+    return specs
+
+
+def _batch_objective(design: Design, specs, cases, configuration: str, channel, **sim_kw):
+    """A batch objective over several records: sum of eq. 6.x integrals."""
+    keys = [s.key for s in specs]
+
+    def f(X: np.ndarray) -> np.ndarray:
+        designs = [design.with_overrides(dict(zip(keys, row))) for row in X]
+        J = np.zeros(len(designs))
+        for t, measured, ex, extra in cases:
+            _, ch, status = simulate_batch(designs, ex, configuration, rate=1.0 / (t[1] - t[0]),
+                                           duration=t[-1] - t[0], channels=list(channel.sources), **sim_kw, **extra)
+            sim = channel(ch)
+            for i in range(len(designs)):
+                j = integral_abs_error(t, measured, sim[i][: len(t)]) if status[i] == 0 else float("nan")
+                J[i] += j
+        return J
+
+    return f
+
+
+class _Channel:
+    def __init__(self, sources, fn):
+        self.sources = sources
+        self.fn = fn
+
+    def __call__(self, ch):
+        return self.fn(ch)
+
+
+def _context(design: Design, measured: pd.DataFrame) -> str:
+    """Hash of a fit's inputs (for checkpoint validity)."""
+    import hashlib
+
+    h = hashlib.sha256(design.hash().encode())
+    h.update(pd.util.hash_pandas_object(measured, index=False).to_numpy().tobytes())
+    return h.hexdigest()[:16]
+
+
+def _record_input(df: pd.DataFrame, column: str, kind: str, cutoff: float):
+    t = df["time [s]"].to_numpy()
+    t = t - t[0]
+    return t, Excitation.from_samples(t, df[column].to_numpy(), kind=kind, cutoff=cutoff)
+
+
+def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, settings: GASettings, seed: int, *,
+              bench: dict, checkpoint=None, scheduler=None, progress=True) -> FitResult:
+    """Fit one valve's stiffness (and shim friction) to its flow-bench record."""
+    items = cal["shim" if valve in SHIM_VALVES else "intake"]
+    specs = specs_from_config(design, items, prefix=f"{valve}.")
+    cases = []
+    for _, g in runs(measured):
+        t, ex = _record_input(g, "flow [m^3/s]", "flow", cal["input_cutoff"])
+        cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
+    ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
+    f = _batch_objective(design, specs, cases, "valve", ch, bench=bench)
+    x0 = {s.key: design[s.key] for s in specs}
+    return run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
+                  label=f"valve {valve}", progress=progress, context=_context(design, measured))
+
+
+def fit_compliance(design: Design, measured: pd.DataFrame, cal: dict, settings: GASettings, seed: int, *,
+                   checkpoint=None, scheduler=None, progress=True) -> FitResult:
+    """Fit gas content and oil bulk modulus to the damper-level sine test."""
+    specs = specs_from_config(design, cal["parameters"])
+    cases = []
+    for _, g in runs(measured):
+        t, ex = _record_input(g, "displacement [m]", "displacement", cal["input_cutoff"])
+        cases.append((t, g["force [N]"].to_numpy(), ex, {"current": float(g["current [A]"].iloc[0])}))
+    ch = _Channel(("rod force [N]",), lambda c: c["rod force [N]"])
+    f = _batch_objective(design, specs, cases, "damper", ch)
+    x0 = {s.key: design[s.key] for s in specs}
+    return run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
+                  label="compliance", progress=progress, context=_context(design, measured))
+
+
+def fit_static_curve(measured: pd.DataFrame, run: str, order: int = 5) -> list[float]:
+    """Least-squares static load-deflection polynomial F = sum c_k X^k,
+    k = 1..order (no constant), from a quasi-static record (thesis 7.2)."""
+    g = dict(runs(measured))[run]
+    X = g["displacement [m]"].to_numpy()
+    F = g["force [N]"].to_numpy()
+    s = np.max(np.abs(X))
+    A = np.column_stack([(X / s) ** k for k in range(1, order + 1)])
+    c, *_ = np.linalg.lstsq(A, F, rcond=None)
+    return [float(c[k - 1] / s**k) for k in range(1, order + 1)]
+
+
+def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: GASettings, seed: int, *,
+                  checkpoint=None, scheduler=None, progress=True) -> tuple[FitResult, list[float]]:
+    """Static curve by least squares, then the dynamic parameters by GA on
+    the random record (eq. 6.3)."""
+    coef = fit_static_curve(measured, cal["static"]["run"], cal["static"]["order"])
+    d = design.with_overrides({"top_mount.F_LD": coef})
+    specs = specs_from_config(d, cal["parameters"], prefix="top_mount.")
+    g = dict(runs(measured))[cal["dynamic_run"]]
+    t, ex = _record_input(g, "displacement [m]", "displacement", cal["input_cutoff"])
+    cases = [(t, g["force [N]"].to_numpy(), ex, {})]
+    ch = _Channel(("top mount force [N]",), lambda c: c["top mount force [N]"])
+    f = _batch_objective(d, specs, cases, "topmount", ch)
+    x0 = {s.key: d[s.key] for s in specs}
+    res = run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
+                 label="top mount", progress=progress, context=_context(design, measured))
+    # "before" is the uncalibrated design: nominal dynamics AND nominal static curve
+    f_nominal = _batch_objective(design, specs, cases, "topmount", ch)
+    res.start_objective = float(f_nominal(np.array([[x0[s.key] for s in specs]]))[0])
+    return res, coef

@@ -1,0 +1,94 @@
+"""DVC stage `compare`: thesis tables 6.5 (mono-sine rod acceleration peaks)
+and 6.6 (random-test PSD at 200 / 300 Hz) for the ten design cases,
+simulated (calibrated model) vs measured; metrics.json for `dvc metrics`,
+plot data for `dvc plots`, PNG overlays per case."""
+
+import json
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from _common import CONF, MEASURED, OUT, config, read_overlay, write_json, write_text
+from dampertwin import kpi, report
+from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.protocols import load_protocol
+from dampertwin.variants import load_variants
+
+
+def main() -> None:
+    cfg = config()
+    f_mono = load_protocol(CONF / "test" / "monosine.yaml")["frequency"]
+    rows65, rows66, plot_rows = [], [], []
+    for v in load_variants(CONF / "variant"):
+        sim_m = read_frame(OUT / "sim" / v.case / "monosine.parquet", "monosine")[0]
+        mea_m = read_frame(MEASURED / "monosine" / f"{v.case}.parquet", "monosine")[0]
+        ps, pm = kpi.rod_acceleration_peaks(sim_m, f_mono), kpi.rod_acceleration_peaks(mea_m, f_mono)
+        rows65.append(dict(no=v.row, case=v.title, current=v.current, sim_rebound=ps["rebound"],
+                           meas_rebound=pm["rebound"], sim_compression=ps["compression"],
+                           meas_compression=pm["compression"]))
+        sim_r = read_frame(OUT / "sim" / v.case / "random.parquet", "random")[0]
+        mea_r = read_frame(MEASURED / "random" / f"{v.case}.parquet", "random")[0]
+        ls, lm = kpi.psd_levels(sim_r), kpi.psd_levels(mea_r)
+        rows66.append(dict(no=v.row, case=v.title, current=v.current, sim_200=ls["200 Hz [dB]"],
+                           meas_200=lm["200 Hz [dB]"], sim_300=ls["300 Hz [dB]"], meas_300=lm["300 Hz [dB]"]))
+        for k, s_, m_ in (("rebound peak [g]", ps["rebound"], pm["rebound"]),
+                          ("compression peak [g]", ps["compression"], pm["compression"]),
+                          ("PSD 200 Hz [dB]", ls["200 Hz [dB]"], lm["200 Hz [dB]"]),
+                          ("PSD 300 Hz [dB]", ls["300 Hz [dB]"], lm["300 Hz [dB]"])):
+            plot_rows.append({"case": v.case, "kpi": k, "simulated": s_, "measured": m_})
+        pdir = OUT / "plots" / v.case
+        pdir.mkdir(parents=True, exist_ok=True)
+        fig = report.monosine_figure(runs(sim_m)[0][1], runs(mea_m)[0][1], f_mono,
+                                     f"{v.title}, {v.current:g} A: 13 Hz mono-sine, calibrated model vs measured")
+        fig.savefig(pdir / "monosine.png", dpi=100)
+        plt.close(fig)
+        fig = report.psd_figure(sim_r, mea_r, f"{v.title}, {v.current:g} A: random road noise "
+                                f"(Welch {ls['resolution [Hz]']:g} Hz)")
+        fig.savefig(pdir / "psd.png", dpi=100)
+        plt.close(fig)
+    sim_c = read_frame(OUT / "sim" / "baseline_1.6" / "curving.parquet", "curving")[0]
+    mea_c = read_frame(MEASURED / "curving" / "baseline.parquet", "curving")[0]
+    by_cur = {}
+    for name, g in runs(sim_c):
+        by_cur.setdefault(float(g["current [A]"].iloc[0]), []).append((name, g))
+    fig = report.curving_figure(by_cur, mea_c, "Baseline: curving test at 0.32 / 0.9 / 1.6 A, calibrated model")
+    fig.savefig(OUT / "plots" / "baseline_1.6" / "curving.png", dpi=100)
+    plt.close(fig)
+
+    t65, t66 = kpi.table_6_5(rows65), kpi.table_6_6(rows66)
+    meta = {"profile": cfg.profile.name, "seed": int(cfg.seed), "kpi": "thesis tables 6.5 / 6.6",
+            "psd": "Welch 2 Hz resolution, mean over a 10 Hz band, dB re 1 g^2/Hz"}
+    write_frame(OUT / "table_6_5.parquet", t65, meta)
+    write_frame(OUT / "table_6_6.parquet", t66, meta)
+    write_text(OUT / "table_6_5.md", "Table 6.5 - mono-sine rod acceleration peaks, calibrated model vs measured "
+               f"(profile {cfg.profile.name}; measured data SYNTHETIC)\n\n" + kpi.to_markdown(t65))
+    write_text(OUT / "table_6_6.md", "Table 6.6 - PSD of rod acceleration at 200 / 300 Hz [dB re 1 g^2/Hz] "
+               f"(profile {cfg.profile.name}; measured data SYNTHETIC)\n\n" + kpi.to_markdown(t66))
+    metrics = {}
+    for col in ("Rebound diff [%]", "Compression diff [%]"):
+        a = np.abs(t65[col].to_numpy())
+        metrics[col] = {"mean_abs": float(a.mean()), "max_abs": float(a.max())}
+    for col in ("200 Hz diff [dB]", "300 Hz diff [dB]"):
+        a = np.abs(t66[col].to_numpy())
+        metrics[col] = {"mean_abs": float(a.mean()), "max_abs": float(a.max())}
+    write_json(OUT / "metrics.json", metrics)
+    pd.DataFrame(plot_rows).to_csv(OUT / "plots" / "kpi.csv", index=False)
+    write_json(OUT / "fits.json", fit_summary(cfg))
+
+
+def fit_summary(cfg) -> dict:
+    """Every fit's values and objective before / after (committed with the
+    tables, so the study's calibration can be read without the DVC cache)."""
+    fits = {"profile": cfg.profile.name, "fits": {}}
+    for ov in sorted(OUT.glob("*/**/overlay.yaml")):
+        name = str(ov.parent.relative_to(OUT))
+        m = json.loads((ov.parent / "metrics.json").read_text())
+        fits["fits"][name] = {"values": read_overlay(ov), "objective_start": m["objective_start"],
+                              "objective_best": m["objective_best"], "failed_simulations": m["failed_simulations"],
+                              "evaluations": m["evaluations"]}
+    return fits
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,58 @@
+"""DVC stage `compliance_fit`: GA fit of gas content and oil bulk modulus
+on the damper-level 10 mm sine test (thesis 6.3, eq. 6.2), with the four
+baseline valve fits applied."""
+
+import matplotlib.pyplot as plt
+
+from _common import CONF, MEASURED, OUT, baseline, config, read_overlay, seed_for, write_json, write_overlay
+from dampertwin.calibration.approach1 import fit_compliance
+from dampertwin.calibration.ga import GASettings
+from dampertwin.design import yaml_load
+from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.report import simulate_from_record
+
+VALVES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
+
+
+def main() -> None:
+    cfg = config()
+    d = baseline()
+    for v in VALVES:
+        d = d.with_overrides(read_overlay(OUT / "valves" / v / "overlay.yaml"))
+    cal = yaml_load((CONF / "calibration" / "compliance.yaml").read_text())
+    meas, _ = read_frame(MEASURED / "compliance" / "baseline.parquet", "compliance")
+    seed = seed_for("compliance_fit")
+    out = OUT / "compliance"
+    res = fit_compliance(d, meas, cal, GASettings.from_config(cfg.profile.ga.compliance), seed,
+                         checkpoint=OUT / "checkpoints" / "compliance.npz", scheduler=cfg.profile.scheduler)
+    meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
+            "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
+    write_overlay(out / "overlay.yaml", res.best, meta)
+    write_frame(out / "history.parquet", res.history.rename(columns={"best": "best [N*s]", "mean": "mean [N*s]"}),
+                {**meta, "design_hash": d.hash()})
+    write_json(out / "metrics.json", {"objective_start": res.start_objective, "objective_best": res.best_objective,
+                                      "improvement_pct": 100 * (1 - res.best_objective / res.start_objective),
+                                      "failed_simulations": res.failed, "evaluations": res.evaluations,
+                                      **{k: v for k, v in res.best.items()}})
+    fitted = d.with_overrides(res.best)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
+    name, g = runs(meas)[-1]
+    for label, dd, st in (("nominal", d, ":"), ("fitted", fitted, "--")):
+        r = simulate_from_record(dd, g, "damper", float(g["current [A]"].iloc[0]))
+        axes[0].plot(r.time, r["rod force [N]"], st, label=label)
+        axes[1].plot(r["velocity [m/s]"], r["rod force [N]"], st, label=label)
+    axes[0].plot(g["time [s]"], g["force [N]"], lw=0.8, alpha=0.7, label="measured")
+    v = g["displacement [m]"].diff() / g["time [s]"].diff()
+    axes[1].plot(v.rolling(25, center=True).mean(), g["force [N]"], lw=0.8, alpha=0.7, label="measured")
+    axes[0].set(xlabel="time [s]", ylabel="force [N]", title=f"compliance test, run {name}")
+    axes[1].set(xlabel="velocity [m/s]", ylabel="force [N]", title="force-velocity hysteresis")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.savefig(out / "compliance.png", dpi=100)
+    plt.close(fig)
+    (OUT / "checkpoints" / "compliance.npz").unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
+
+
+if __name__ == "__main__":
+    main()

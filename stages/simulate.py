@@ -1,0 +1,49 @@
+"""DVC stage `simulate@<case>`: the case's calibrated design through the
+mono-sine and random tests (and, for baseline_1.6, the curving test at the
+three currents), each driven by the recorded displacement of the
+measurement. Time series -> results/approach1/sim/<case>/<test>.parquet."""
+
+import sys
+
+import pandas as pd
+
+from _common import CONF, MEASURED, OUT, config
+from dampertwin.design import load
+from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.report import simulate_from_record
+from dampertwin.variants import load_variant
+
+TESTS = {"monosine": "module", "random": "module", "curving": "damper"}
+
+
+def main(case: str) -> None:
+    design = load(OUT / "designs" / f"{case}.yaml")
+    variant = load_variant(CONF / "variant" / f"{case}.yaml")
+    cfg = config()
+    tests = ["monosine", "random"] + (["curving"] if case == "baseline_1.6" else [])
+    for test in tests:
+        src = MEASURED / test / f"{('baseline' if test == 'curving' else case)}.parquet"
+        meas, mmeta = read_frame(src, test, current_range=(design.pq_map.currents[0], design.pq_map.currents[-1]))
+        frames = []
+        for name, g in runs(meas):
+            cur = float(g["current [A]"].iloc[0]) if test == "curving" else variant.current
+            r = simulate_from_record(design, g, TESTS[test], cur)
+            if not r.ok:
+                raise RuntimeError(f"{case}/{test}/{name}: simulation failed: {r.stats.message}")
+            f = r.to_frame()
+            force = "top mount force [N]" if TESTS[test] == "module" else "rod force [N]"
+            cols = {"time [s]": f["time [s]"], "displacement [m]": f["displacement [m]"], "force [N]": f[force],
+                    "current [A]": cur}
+            if TESTS[test] == "module":
+                cols["rod acceleration [m/s^2]"] = f["rod acceleration [m/s^2]"]
+                for v in ("piston_rebound", "piston_intake", "base_compression", "base_intake"):
+                    cols[f"lift {v} [m]"] = f[f"lift {v} [m]"]
+            frames.append(pd.DataFrame(cols).assign(run=name))
+        write_frame(OUT / "sim" / case / f"{test}.parquet", pd.concat(frames, ignore_index=True),
+                    {"synthetic": False, "simulated": True, "case": case, "protocol": test,
+                     "design_hash": design.hash(), "profile": cfg.profile.name, "measured_seed": mmeta.get("seed"),
+                     "input": "recorded displacement of the measurement, low-passed"})
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
