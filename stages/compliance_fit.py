@@ -9,6 +9,7 @@ from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
 from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.protocols import load_protocol
 from dampertwin.report import simulate_from_record
 
 VALVES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
@@ -23,8 +24,10 @@ def main() -> None:
     meas, _ = read_frame(MEASURED / "compliance" / "baseline.parquet", "compliance")
     seed = seed_for("compliance_fit")
     out = OUT / "compliance"
+    bandwidth = load_protocol(CONF / "test" / "compliance.yaml").get("sensors", {}).get("force")
     res = fit_compliance(d, meas, cal, GASettings.from_config(cfg.profile.ga.compliance), seed,
-                         checkpoint=OUT / "checkpoints" / "compliance.npz", scheduler=cfg.profile.scheduler)
+                         checkpoint=OUT / "checkpoints" / "compliance.npz", scheduler=cfg.profile.scheduler,
+                         force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
     write_overlay(out / "overlay.yaml", res.best, meta)

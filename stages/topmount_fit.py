@@ -12,6 +12,7 @@ from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
 from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.protocols import load_protocol
 from dampertwin.report import simulate_from_record
 from dampertwin.variants import TOP_MOUNTS, load_variant
 
@@ -25,8 +26,10 @@ def main(name: str) -> None:
     meas, _ = read_frame(MEASURED / "topmount" / f"{name}.parquet", "topmount")
     seed = seed_for(f"topmount_fit/{name}")
     out = OUT / "topmount" / name
+    bandwidth = load_protocol(CONF / "test" / "topmount.yaml").get("sensors", {}).get("force")
     res, coef = fit_top_mount(d, meas, cal, GASettings.from_config(cfg.profile.ga.topmount), seed,
-                              checkpoint=OUT / "checkpoints" / f"topmount_{name}.npz", scheduler=cfg.profile.scheduler)
+                              checkpoint=OUT / "checkpoints" / f"topmount_{name}.npz", scheduler=cfg.profile.scheduler,
+                              force_bandwidth=bandwidth)
     best = {**res.best, "top_mount.F_LD": coef}
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]"}

@@ -163,3 +163,21 @@ def test_markdown_table():
     tab = kpi.table_6_6([dict(no=1, case="Baseline", current=1.6, sim_200=-4.6, meas_200=-7.6, sim_300=-6.0, meas_300=-5.2)])
     md = kpi.to_markdown(tab)
     assert md.splitlines()[0].startswith("| no. | Design case |") and "| 3.0 |" in md
+
+
+def test_sensor_lowpass_gain_matches_butterworth():
+    """2nd-order Butterworth designed by the bilinear transform with its
+    cutoff prewarped: |H(f)| = 1/sqrt(1 + (w/wc)^4), w = tan(pi f / fs),
+    wc = tan(pi fc / fs); measured as the steady-state gain of a sine."""
+    from dampertwin.sensors import sensor_lowpass
+
+    fs, fc = 50_000.0, 1000.0
+    t = np.arange(0, 0.2, 1 / fs)
+    for f in (100.0, 1000.0, 3000.0):
+        y = sensor_lowpass(np.sin(2 * math.pi * f * t), fc, fs)
+        late = t > 0.1
+        gain = np.sqrt(2 * np.mean(y[late] ** 2))
+        r = math.tan(math.pi * f / fs) / math.tan(math.pi * fc / fs)
+        assert gain == pytest.approx(1 / math.sqrt(1 + r**4), rel=2e-3)
+    x = np.ones(100)
+    assert np.array_equal(sensor_lowpass(x, None, fs), x)

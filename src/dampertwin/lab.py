@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy import signal
 
 from . import __version__
 from .design import Design
@@ -33,6 +32,7 @@ from .design import yaml_load
 from .excitation import Excitation
 from .io import write_frame
 from .protocols import Run, build_runs, load_all
+from .sensors import sensor_lowpass
 from .simulation import simulate
 from .variants import TOP_MOUNTS, VALVE_DESIGNS, Variant, load_variants
 
@@ -77,16 +77,6 @@ def _track(ex: Excitation, gain: float, delay: float) -> Excitation:
     return replace(ex, value=v, rate=r)
 
 
-def _lowpass(x: np.ndarray, fc: float, fs: float) -> np.ndarray:
-    """Causal 2nd-order Butterworth (sensor bandwidth); no filter when fc is
-    beyond 0.45 fs (the recording's Nyquist limit dominates)."""
-    if fc >= 0.45 * fs:
-        return x
-    sos = signal.butter(2, fc, fs=fs, output="sos")
-    zi = signal.sosfilt_zi(sos) * x[0]
-    return signal.sosfilt(sos, x, zi=zi)[0]
-
-
 def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, bench: dict | None = None) -> pd.DataFrame:
     """Measure one run on the hidden sample behind ``design``."""
     b = sample["benches"]
@@ -100,7 +90,7 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
 
     def meas(name: str, x: np.ndarray) -> np.ndarray:
         if name in bw:
-            x = _lowpass(x, bw[name], fs)
+            x = sensor_lowpass(x, bw[name], fs)
         return x + noise.get(name, 0.0) * rng.standard_normal(len(x))
 
     cols = {"time [s]": r.time}

@@ -94,8 +94,11 @@ def validate(doc: Any, where: str) -> dict:
                 errors.append(f"{where}: {name}.{key} = {v!r}; expected positive finite numbers (SI)")
         elif kind is dict and not isinstance(v, dict):
             errors.append(f"{where}: {name}.{key} must be a mapping")
+    sensors = doc.get("sensors", {})
+    if not isinstance(sensors, dict) or any(k not in ("force", "acceleration") or not _pos(v) for k, v in sensors.items()):
+        errors.append(f"{where}: {name}.sensors must map force / acceleration to a bandwidth in Hz, got {sensors!r}")
     for k in doc:
-        if k != "protocol" and k not in _SCHEMA[name]:
+        if k not in ("protocol", "sensors") and k not in _SCHEMA[name]:
             errors.append(f"{where}: {name}.{k}: unknown key; expected {', '.join(_SCHEMA[name])}")
     for key in ("bands",):
         for i, b in enumerate(doc.get(key, []) if isinstance(doc.get(key), list) else []):

@@ -1,0 +1,213 @@
+"""One-factor-at-a-time design sweeps with Hydra multirun (thesis table 6.5
+design cases, or any parameter at chosen levels).
+
+    python -m dampertwin.sweep -m 'variant=glob(*)'                 # the 10 design cases
+    python -m dampertwin.sweep -m +ofat=c_params                    # every C parameter at -20 % / +20 %
+    python -m dampertwin.sweep -m factor=piston_intake.a,base_intake.a level=-0.2,0.2
+    python -m dampertwin.sweep -m 'variant=glob(*)' hydra/launcher=slurm   # same sweep on SLURM (submitit)
+
+Each job writes results/sweeps/<sweep>/<name>/ (time series and KPIs as
+Parquet with the resolved config and design hash in the metadata); a job
+whose artifacts are complete is skipped (resume); a failing job is recorded
+and does not stop the others; the summary (one row per variant, every KPI
+and its change vs the baseline) is written when the multirun ends.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import traceback
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from omegaconf import DictConfig, OmegaConf
+
+from . import kpi
+from .design import Design, load
+from .io import write_frame
+from .protocols import build_runs, load_protocol
+from .simulation import simulate
+
+log = logging.getLogger("dampertwin.sweep")
+ROOT = Path(__file__).resolve().parents[2]
+COMPLETE, FAILED = "_COMPLETE.json", "_FAILED.json"
+KPIS = ("rebound peak [g]", "compression peak [g]", "PSD 200 Hz [dB]", "PSD 300 Hz [dB]", "peak rod force [N]")
+# thesis table 6.5, measured column (rebound, compression peaks [g]) for the trend check
+THESIS_MEASURED = {
+    "baseline_1.6": (10.7, -9.2), "baseline_0.9": (-1.3, -6.1), "baseline_0.32": (4.5, -2.7),
+    "alternative_top_mount": (8.3, -10.9), "increased_precharge": (10.2, -9.5),
+    "different_active_valve": (9.1, -8.9), "lower_piston_intake": (10.9, -12.3),
+    "lower_piston_rebound": (10.7, -9.6), "lower_base_intake": (15.7, -8.4), "lower_base_compression": (5.1, -8.6),
+}
+BASELINE_CASE = "baseline_1.6"
+
+
+def job_name(cfg: DictConfig) -> str:
+    name = cfg.variant.case
+    if cfg.get("factor"):
+        name += f"__{cfg.factor}@{float(cfg.level):+.0%}"
+    return name
+
+
+RUN_CONTROL = ("hydra", "fail_on", "results_dir", "sweep")  # keys that do not change a variant's results
+
+
+def config_hash(cfg: DictConfig) -> str:
+    """Hash of what determines a variant's results (not where or how it runs)."""
+    c = OmegaConf.to_container(cfg, resolve=True)
+    for k in RUN_CONTROL:
+        c.pop(k, None)
+    return hashlib.sha256(json.dumps(c, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def design_for(cfg: DictConfig, root: Path = ROOT) -> Design:
+    """The calibrated design of the case when the approach-1 study produced
+    one, else the nominal baseline with the case's overrides; then the OFAT
+    factor, if any."""
+    case = cfg.variant.case
+    cal = root / cfg.calibrated / f"{case}.yaml"
+    if cfg.use_calibrated and cal.is_file():
+        d = load(cal)
+    else:
+        d = load(root / cfg.design)
+        if cfg.variant.overrides:
+            d = d.with_overrides(OmegaConf.to_container(cfg.variant.overrides, resolve=True))
+    if cfg.get("factor"):
+        d = d.with_overrides({cfg.factor: d[cfg.factor] * (1.0 + float(cfg.level))})
+    return d
+
+
+def sweep_dir(cfg: DictConfig, root: Path = ROOT) -> Path:
+    """results_dir/<sweep> (results_dir relative to the repository root unless absolute)."""
+    return root / cfg.results_dir / cfg.sweep
+
+
+def run_variant(cfg: DictConfig, root: Path = ROOT) -> Path:
+    """Run the standard tests for one variant; write artifacts atomically;
+    skip if complete; record (not raise) a failure."""
+    name = job_name(cfg)
+    out = sweep_dir(cfg, root) / name
+    h = config_hash(cfg)
+    done = out / COMPLETE
+    if done.is_file() and json.loads(done.read_text()).get("config_hash") == h:
+        log.info("%s: complete, skipped", name)
+        return out
+    out.mkdir(parents=True, exist_ok=True)
+    (out / FAILED).unlink(missing_ok=True)
+    try:
+        if cfg.get("fail_on") and cfg.fail_on == name:  # deliberate failure, for tests of the sweep machinery
+            raise RuntimeError(f"deliberate failure of {name} (fail_on)")
+        d = design_for(cfg, root)
+        resolved = OmegaConf.to_container(cfg, resolve=True)
+        resolved.pop("hydra", None)
+        meta = {"config": resolved, "config_hash": h, "design_hash": d.hash(), "variant": name,
+                "sweep": cfg.sweep, "current [A]": float(cfg.variant.current)}
+        row = {"variant": name, "case": cfg.variant.case, "factor": cfg.get("factor") or "",
+               "level": float(cfg.level) if cfg.get("factor") else 0.0, "current [A]": float(cfg.variant.current)}
+        for test in cfg.tests:
+            proto = load_protocol(root / "conf" / "test" / f"{test}.yaml")
+            runs = [r for r in build_runs(proto, int(cfg.seed)) if abs(r.current - cfg.variant.current) < 1e-9]
+            if not runs:
+                raise ValueError(f"protocol {test} has no run at {cfg.variant.current} A")
+            r = simulate(d, runs[0].excitation, runs[0].configuration, current=runs[0].current, rate=runs[0].rate)
+            if not r.ok:
+                raise RuntimeError(f"{test}: simulation stopped: {r.stats.message}")
+            f = r.to_frame()
+            f["force [N]"] = f["top mount force [N]"]
+            f["current [A]"] = runs[0].current
+            write_frame(out / f"{test}.parquet", f, {**meta, "protocol": test})
+            if test == "monosine":
+                pk = kpi.rod_acceleration_peaks(f, proto["frequency"])
+                row["rebound peak [g]"], row["compression peak [g]"] = pk["rebound"], pk["compression"]
+                row["peak rod force [N]"] = float(np.max(np.abs(kpi.last_cycle(f, proto["frequency"])["rod force [N]"])))
+            if test == "random":
+                lv = kpi.psd_levels(f)
+                row["PSD 200 Hz [dB]"], row["PSD 300 Hz [dB]"] = lv["200 Hz [dB]"], lv["300 Hz [dB]"]
+        write_frame(out / "kpis.parquet", pd.DataFrame([row]), meta)
+        (out / COMPLETE).write_text(json.dumps({"config_hash": h, "design_hash": d.hash()}))
+        log.info("%s: done", name)
+    except Exception as e:  # a failed variant is reported and does not stop the sweep
+        (out / COMPLETE).unlink(missing_ok=True)
+        (out / FAILED).write_text(json.dumps({"error": f"{type(e).__name__}: {e}", "traceback": traceback.format_exc(),
+                                              "config_hash": h}))
+        log.error("%s: FAILED: %s", name, e)
+    return out
+
+
+def summarize(sweep_dir: Path) -> pd.DataFrame:
+    """One row per variant with every KPI and its change vs the baseline
+    (the unperturbed baseline_1.6 case); failed variants listed with their
+    error. Writes summary.parquet and summary.md into the sweep folder."""
+    rows = []
+    for v in sorted(p for p in sweep_dir.iterdir() if p.is_dir() and not p.name.startswith(".")):
+        if (v / COMPLETE).is_file():
+            df = pd.read_parquet(v / "kpis.parquet")  # a KPI table, not a time series
+            rows.append({**df.iloc[0].to_dict(), "status": "ok"})
+        elif (v / FAILED).is_file():
+            rows.append({"variant": v.name, "status": "failed: " + json.loads((v / FAILED).read_text())["error"]})
+    tab = pd.DataFrame(rows)
+    if tab.empty:
+        return tab
+    base = tab[(tab.get("case") == BASELINE_CASE) & (tab.get("factor", "") == "") & (tab.status == "ok")]
+    for k in KPIS:
+        if k not in tab:
+            continue
+        ref = base[k].iloc[0] if len(base) else np.nan
+        tab[f"change {k}"] = tab[k] - ref
+    if "rebound peak [g]" in tab and len(base):
+        tb = THESIS_MEASURED[BASELINE_CASE]
+        for i, (kk, j) in enumerate((("rebound", 0), ("compression", 1))):
+            col = f"{kk} peak [g]"
+            ours = np.sign(np.abs(tab[col]) - abs(base[col].iloc[0]))
+            thesis = [np.sign(abs(THESIS_MEASURED[c][j]) - abs(tb[j])) if c in THESIS_MEASURED and not f else np.nan
+                      for c, f in zip(tab["case"], tab["factor"])]
+            tab[f"|{kk}| trend"] = ours
+            tab[f"|{kk}| trend thesis"] = thesis
+    meta = {"sweep": sweep_dir.name, "rows": len(tab), "failed": int((tab.status != "ok").sum())}
+    write_frame(sweep_dir / "summary.parquet", tab.fillna({"factor": ""}), meta)
+    (sweep_dir / "summary.md").write_text(f"# Sweep {sweep_dir.name}\n\n" + kpi.to_markdown(tab, digits=2))
+    return tab
+
+
+def trend_agreement(tab: pd.DataFrame) -> tuple[int, int]:
+    """(agreeing, compared) directions of |peak| change vs thesis table 6.5."""
+    agree = total = 0
+    for kk in ("rebound", "compression"):
+        a, b = tab.get(f"|{kk}| trend"), tab.get(f"|{kk}| trend thesis")
+        if a is None or b is None:
+            continue
+        m = b.notna() & (tab.case != BASELINE_CASE) & (b != 0)
+        agree += int((a[m] == b[m]).sum())
+        total += int(m.sum())
+    return agree, total
+
+
+try:  # the Hydra callback that writes the summary when a multirun ends
+    from hydra.experimental.callback import Callback
+
+    class SummaryCallback(Callback):
+        def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
+            d = sweep_dir(config)
+            if d.is_dir():
+                tab = summarize(d)
+                failed = int((tab.status != "ok").sum()) if len(tab) else 0
+                log.info("summary: %s (%d variants, %d failed)", d / "summary.md", len(tab), failed)
+except ImportError:  # pragma: no cover
+    pass
+
+
+def _main() -> None:
+    import hydra
+
+    @hydra.main(config_path=str(ROOT / "conf"), config_name="sweep", version_base="1.3")
+    def app(cfg: DictConfig) -> None:
+        run_variant(cfg)
+
+    app()
+
+
+if __name__ == "__main__":
+    _main()

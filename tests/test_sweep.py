@@ -1,0 +1,98 @@
+"""Hydra OFAT sweeps: artifacts, failure isolation, resume, summary."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dampertwin.io import read_frame, read_meta
+from dampertwin.sweep import COMPLETE, FAILED, trend_agreement
+
+from conftest import ROOT
+
+
+def sweep(tmp: Path, *args: str) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "dampertwin.sweep", "-m", f"results_dir={tmp}", "sweep=t", "tests=[monosine]",
+           "use_calibrated=false", *args]
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=dict(os.environ, MPLBACKEND="Agg"))
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    return r
+
+
+@pytest.fixture(scope="module")
+def two_variants(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("sweeps")
+    r = sweep(tmp, "variant=baseline_1.6,lower_base_intake", "fail_on=lower_base_intake")
+    return tmp / "t", r
+
+
+def test_two_variant_sweep_writes_artifacts_with_metadata(two_variants):
+    d, _ = two_variants
+    base = d / "baseline_1.6"
+    assert (base / COMPLETE).is_file()
+    df, meta = read_frame(base / "monosine.parquet", "monosine")
+    assert len(df) > 1000 and "rod acceleration [m/s^2]" in df
+    assert meta["variant"] == "baseline_1.6" and meta["design_hash"] and meta["config_hash"]
+    assert meta["config"]["variant"]["case"] == "baseline_1.6" and meta["config"]["tests"] == ["monosine"]
+    k = pd.read_parquet(base / "kpis.parquet")
+    assert np.isfinite(k["rebound peak [g]"].iloc[0]) and k["compression peak [g]"].iloc[0] < 0
+
+
+def test_failing_variant_is_reported_and_others_complete(two_variants):
+    d, r = two_variants
+    failed = json.loads((d / "lower_base_intake" / FAILED).read_text())
+    assert "deliberate failure" in failed["error"]
+    assert not (d / "lower_base_intake" / COMPLETE).exists()
+    tab = pd.read_parquet(d / "summary.parquet")
+    st = dict(zip(tab.variant, tab.status))
+    assert st["baseline_1.6"] == "ok" and st["lower_base_intake"].startswith("failed")
+    assert "FAILED" in r.stdout + r.stderr
+
+
+def test_rerun_skips_completed_and_retries_failed(two_variants):
+    d, _ = two_variants
+    before = (d / "baseline_1.6" / "monosine.parquet").stat().st_mtime_ns
+    r = sweep(d.parent, "variant=baseline_1.6,lower_base_intake")
+    assert (d / "baseline_1.6" / "monosine.parquet").stat().st_mtime_ns == before
+    assert "baseline_1.6: complete, skipped" in r.stdout + r.stderr
+    assert (d / "lower_base_intake" / COMPLETE).is_file()  # retried, now without the forced failure
+    tab = pd.read_parquet(d / "summary.parquet")
+    assert set(tab.status) == {"ok"}
+    row = tab.set_index("variant").loc["lower_base_intake"]
+    assert row["change rebound peak [g]"] == pytest.approx(row["rebound peak [g]"] -
+                                                            tab.set_index("variant").loc["baseline_1.6", "rebound peak [g]"])
+
+
+def test_generic_ofat_factor_levels(tmp_path):
+    sweep(tmp_path, "factor=base_intake.a", "level=-0.2,0.2")
+    d = tmp_path / "t"
+    names = sorted(p.name for p in d.iterdir() if p.is_dir() and not p.name.startswith("."))
+    assert names == ["baseline_1.6__base_intake.a@+20%", "baseline_1.6__base_intake.a@-20%"]
+    hashes = {read_meta(d / n / "kpis.parquet")["design_hash"] for n in names}
+    assert len(hashes) == 2
+    cfg = read_meta(d / names[0] / "kpis.parquet")["config"]
+    assert cfg["factor"] == "base_intake.a" and cfg["level"] == 0.2
+
+
+def test_trend_agreement_counts_directions():
+    tab = pd.DataFrame({"case": ["baseline_1.6", "lower_base_intake", "alternative_top_mount"], "factor": ["", "", ""],
+                        "|rebound| trend": [0, 1, 1], "|rebound| trend thesis": [0, 1, -1],
+                        "|compression| trend": [0, -1, 1], "|compression| trend thesis": [0, -1, 1]})
+    assert trend_agreement(tab) == (3, 4)
+
+
+def test_c_params_ofat_config_lists_every_scalar_c_parameter():
+    from dampertwin.design import load, yaml_load
+
+    d = load(ROOT / "conf" / "design" / "baseline.yaml")
+    cfg = yaml_load((ROOT / "conf" / "ofat" / "c_params.yaml").read_text())
+    listed = cfg["hydra"]["sweeper"]["params"]["factor"].split(",")
+    assert listed == [p.key for p in d.by_type("C") if not isinstance(p.value, tuple)]
+
