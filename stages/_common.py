@@ -57,3 +57,24 @@ def seed_for(name: str) -> int:
     import zlib
 
     return int(config().seed + zlib.crc32(name.encode())) % (2**31)
+
+
+def checkpoint(name: str) -> Path:
+    """Per-generation GA checkpoint of a fit (kept only while the fit runs)."""
+    return OUT / "checkpoints" / f"{name}.npz"
+
+
+def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dict | None = None,
+              extra: dict | None = None) -> None:
+    """A fit's outputs: overlay (fitted values as design overrides), GA
+    history (Parquet) and metrics (objective before / after, failures)."""
+    from dampertwin.io import write_frame
+
+    write_overlay(out / "overlay.yaml", res.best if best is None else best, meta)
+    write_frame(out / "history.parquet",
+                res.history.rename(columns={"best": f"best [{unit}]", "mean": f"mean [{unit}]"}),
+                {**meta, "design_hash": design_hash})
+    write_json(out / "metrics.json", {"objective_start": res.start_objective, "objective_best": res.best_objective,
+                                      "improvement_pct": 100 * (1 - res.best_objective / res.start_objective),
+                                      "failed_simulations": res.failed, "evaluations": res.evaluations,
+                                      **(extra or {})})

@@ -4,11 +4,11 @@ baseline valve fits applied."""
 
 import matplotlib.pyplot as plt
 
-from _common import CONF, MEASURED, OUT, baseline, config, read_overlay, seed_for, write_json, write_overlay
+from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, read_overlay, seed_for, write_fit
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
-from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol
 from dampertwin.report import simulate_from_record
 
@@ -26,17 +26,11 @@ def main() -> None:
     out = OUT / "compliance"
     bandwidth = load_protocol(CONF / "test" / "compliance.yaml").get("sensors", {}).get("force")
     res = fit_compliance(d, meas, cal, GASettings.from_config(cfg.profile.ga.compliance), seed,
-                         checkpoint=OUT / "checkpoints" / "compliance.npz", scheduler=cfg.profile.scheduler,
+                         checkpoint=checkpoint("compliance"), scheduler=cfg.profile.scheduler,
                          force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
-    write_overlay(out / "overlay.yaml", res.best, meta)
-    write_frame(out / "history.parquet", res.history.rename(columns={"best": "best [N*s]", "mean": "mean [N*s]"}),
-                {**meta, "design_hash": d.hash()})
-    write_json(out / "metrics.json", {"objective_start": res.start_objective, "objective_best": res.best_objective,
-                                      "improvement_pct": 100 * (1 - res.best_objective / res.start_objective),
-                                      "failed_simulations": res.failed, "evaluations": res.evaluations,
-                                      **{k: v for k, v in res.best.items()}})
+    write_fit(out, res, meta, "N*s", d.hash(), extra=res.best)
     fitted = d.with_overrides(res.best)
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
     name, g = runs(meas)[-1]
@@ -54,7 +48,7 @@ def main() -> None:
         ax.legend()
     fig.savefig(out / "compliance.png", dpi=100)
     plt.close(fig)
-    (OUT / "checkpoints" / "compliance.npz").unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
+    checkpoint("compliance").unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
 
 
 if __name__ == "__main__":

@@ -8,12 +8,12 @@ import sys
 
 import matplotlib.pyplot as plt
 
-from _common import CONF, MEASURED, OUT, baseline, config, seed_for, write_json, write_overlay
+from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, seed_for, write_fit
 from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
-from dampertwin.io import read_frame, write_frame
+from dampertwin.io import read_frame
 from dampertwin.simulation import simulate
 from dampertwin.protocols import build_runs, load_protocol
 from dampertwin.variants import VALVE_DESIGNS, load_variant
@@ -32,24 +32,16 @@ def main(name: str) -> None:
     out = OUT / "valves" / name
     seed = seed_for(f"flowbench_fit/{name}")
     res = fit_valve(d, valve, meas, cal, GASettings.from_config(cfg.profile.ga.valves), seed, bench=bench,
-                    checkpoint=OUT / "checkpoints" / f"valve_{name}.npz", scheduler=cfg.profile.scheduler)
+                    checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler)
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
-    write_overlay(out / "overlay.yaml", res.best, meta)
-    write_frame(out / "history.parquet", res.history.rename(columns={"best": "best [Pa*s]", "mean": "mean [Pa*s]"}),
-                {**meta, "design_hash": d.hash()})
-    write_json(out / "metrics.json", {"objective_start": res.start_objective, "objective_best": res.best_objective,
-                                      "improvement_pct": 100 * (1 - res.best_objective / res.start_objective),
-                                      "failed_simulations": res.failed, "evaluations": res.evaluations})
-    fitted = d.with_overrides(res.best)
+    write_fit(out, res, meta, "Pa*s", d.hash())
     run = next(r for r in build_runs(fb) if r.bench_valve == valve)
-    sims = {}
-    for label, dd in (("nominal", d), ("fitted", fitted)):
-        sims[label] = simulate(dd, run.excitation, "valve", bench_valve=valve, rate=run.rate, bench=bench).to_frame()
-    fig = report.pq_figure({valve: meas}, {valve: sims["fitted"]}, f"{name}: flow bench, measured vs fitted model")
+    sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate, bench=bench)
+    fig = report.pq_figure({valve: meas}, {valve: sim.to_frame()}, f"{name}: flow bench, measured vs fitted model")
     fig.savefig(out / "pq.png", dpi=100)
     plt.close(fig)
-    (OUT / "checkpoints" / f"valve_{name}.npz").unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
+    checkpoint(f"valve_{name}").unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
 
 
 if __name__ == "__main__":

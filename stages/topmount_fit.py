@@ -5,13 +5,14 @@ squares and GA fit of the AutoBushFD parameters on the random record
 import sys
 
 import matplotlib.pyplot as plt
+import pandas as pd
 
-from _common import CONF, MEASURED, OUT, baseline, config, seed_for, write_json, write_overlay
+from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, seed_for, write_fit
 from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
-from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol
 from dampertwin.report import simulate_from_record
 from dampertwin.variants import TOP_MOUNTS, load_variant
@@ -28,17 +29,12 @@ def main(name: str) -> None:
     out = OUT / "topmount" / name
     bandwidth = load_protocol(CONF / "test" / "topmount.yaml").get("sensors", {}).get("force")
     res, coef = fit_top_mount(d, meas, cal, GASettings.from_config(cfg.profile.ga.topmount), seed,
-                              checkpoint=OUT / "checkpoints" / f"topmount_{name}.npz", scheduler=cfg.profile.scheduler,
+                              checkpoint=checkpoint(f"topmount_{name}"), scheduler=cfg.profile.scheduler,
                               force_bandwidth=bandwidth)
     best = {**res.best, "top_mount.F_LD": coef}
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]"}
-    write_overlay(out / "overlay.yaml", best, meta)
-    write_frame(out / "history.parquet", res.history.rename(columns={"best": "best [N*s]", "mean": "mean [N*s]"}),
-                {**meta, "design_hash": d.hash()})
-    write_json(out / "metrics.json", {"objective_start": res.start_objective, "objective_best": res.best_objective,
-                                      "improvement_pct": 100 * (1 - res.best_objective / res.start_objective),
-                                      "failed_simulations": res.failed, "evaluations": res.evaluations})
+    write_fit(out, res, meta, "N*s", d.hash(), best=best)
     fitted = d.with_overrides(best)
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
     g = dict(runs(meas))["random"]
@@ -54,7 +50,6 @@ def main(name: str) -> None:
                 rr = simulate_from_record(dd, gg, "topmount", 0.0)
                 sw.append(kpi.dynamic_stiffness(rr.to_frame().assign(run=rn).rename(
                     columns={"top mount force [N]": "force [N]"})))
-        import pandas as pd
         ds = pd.concat(sw)
         axes[1].semilogx(ds["frequency [Hz]"], ds["stiffness [N/m]"] / 1e3, st + "o", label=label)
     dm = kpi.dynamic_stiffness(meas)
@@ -67,7 +62,7 @@ def main(name: str) -> None:
         ax.legend()
     fig.savefig(out / "topmount.png", dpi=100)
     plt.close(fig)
-    (OUT / "checkpoints" / f"topmount_{name}.npz").unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
+    checkpoint(f"topmount_{name}").unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
 
 
 if __name__ == "__main__":

@@ -52,7 +52,7 @@ def test_volume_balance_closes(base):
     r = simulate(base, ex, "module", rate=100e3)
     G = base["oil.Gamma"]
     Vg = base["constants.V_gas0"] * (base["oil.P_0"] / r["p reserve [Pa]"]) ** (1 / G)
-    D_PT, D_R = base["geometry.D_PT"], base["geometry.D_R"]
+    D_R = base["geometry.D_R"]
     A_rod = math.pi * D_R**2 / 4
     s = r["stroke [m]"]
     storage = r["storage rebound [m^3/s]"] + r["storage compression [m^3/s]"] + r["storage third tube [m^3/s]"]

@@ -56,38 +56,31 @@ def test_stiff_prothero_robinson_is_stable_and_accurate():
         assert st.steps < 400
 
 
-def test_step_cap_ends_run_with_status_and_nan_tail():
+def _mono_args(duration):
+    """integrate() arguments of the baseline module on a 13 Hz mono-sine."""
     d = load(BASELINE)
     p = pack(d, 1.6)
-    ex = Excitation.sine(0.005, 13.0, 0.2)
+    ex = Excitation.sine(0.005, 13.0, duration)
     p[L.P_EX_T0], p[L.P_EX_DT] = ex.t0, ex.dt
-    t_out = np.arange(0, 0.2 + 1e-9, 1e-4)
-    out, _, st = integrate(p, ex.array(), (d.pq_map.currents, d.pq_map.dps, d.pq_map.flow), L.CFG_MODULE,
-                           initial_state(p, L.CFG_MODULE), t_out, max_steps=50)
+    t_out = np.arange(0, duration + 1e-9, 1e-4)
+    return (p, ex.array(), (d.pq_map.currents, d.pq_map.dps, d.pq_map.flow), L.CFG_MODULE,
+            initial_state(p, L.CFG_MODULE), t_out)
+
+
+def test_step_cap_ends_run_with_status_and_nan_tail():
+    out, _, st = integrate(*_mono_args(0.2), max_steps=50)
     assert st.status == MAX_STEPS and not st.ok
     assert np.isnan(out[-1]).all() and np.isfinite(out[0]).all()
 
 
 def test_wall_cap_ends_run_with_status():
-    d = load(BASELINE)
-    p = pack(d, 1.6)
-    ex = Excitation.sine(0.005, 13.0, 0.5)
-    p[L.P_EX_T0], p[L.P_EX_DT] = ex.t0, ex.dt
-    t_out = np.arange(0, 0.5 + 1e-9, 1e-4)
-    out, _, st = integrate(p, ex.array(), (d.pq_map.currents, d.pq_map.dps, d.pq_map.flow), L.CFG_MODULE,
-                           initial_state(p, L.CFG_MODULE), t_out, max_wall_s=0.0, chunk_s=0.01)
+    out, _, st = integrate(*_mono_args(0.5), max_wall_s=0.0, chunk_s=0.01)
     assert st.status == WALL_TIME
     assert np.isnan(out[-1]).all()
 
 
 def test_pausing_does_not_change_results():
-    d = load(BASELINE)
-    p = pack(d, 1.6)
-    ex = Excitation.sine(0.005, 13.0, 0.15)
-    p[L.P_EX_T0], p[L.P_EX_DT] = ex.t0, ex.dt
-    t_out = np.arange(0, 0.15 + 1e-9, 1e-4)
-    args = (p, ex.array(), (d.pq_map.currents, d.pq_map.dps, d.pq_map.flow), L.CFG_MODULE,
-            initial_state(p, L.CFG_MODULE), t_out)
+    args = _mono_args(0.15)
     a, _, _ = integrate(*args)
     b, _, _ = integrate(*args, max_wall_s=1e6, chunk_s=0.007)
     np.testing.assert_array_equal(a, b)

@@ -141,7 +141,6 @@ def rodas4(z, t, t_end, t_pause, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, 
     k5 = np.empty(n)
     err_v = np.empty(n)
     yt = np.empty(n)
-    rhs = np.empty(n)
     znew = np.empty(n)
     zd = np.empty(n)
     n_out = t_out.shape[0]
