@@ -1,5 +1,5 @@
 """DVC stage `sweep`: the table-6.5 OFAT sweep (ten design cases, calibrated
-designs of the approach-1 study) -> results/sweeps/table65/ with its summary.
+designs of the approach-1 study) -> results/sweeps/study_table65/ with its summary.
 Same job function as `python -m dampertwin.sweep -m +ofat=table65`, composed
 without @hydra.main; variants run in parallel on the local cores (joblib)."""
 
@@ -11,9 +11,9 @@ from dampertwin.sweep import run_variant, summarize, trend_agreement
 
 def main() -> None:
     cases = sorted(p.stem for p in (CONF / "variant").glob("*.yaml"))
-    cfgs = [compose_sweep([f"variant={c}", "sweep=table65"]) for c in cases]
+    cfgs = [compose_sweep([f"variant={c}", "sweep=study_table65"]) for c in cases]
     Parallel(n_jobs=2)(delayed(run_variant)(c, ROOT) for c in cfgs)
-    tab = summarize(ROOT / "results" / "sweeps" / "table65")
+    tab = summarize(ROOT / "results" / "sweeps" / "study_table65")
     agree, total = trend_agreement(tab)
     print(f"table 6.5 trend agreement with the thesis' measured column: {agree}/{total}")
 

@@ -28,12 +28,12 @@ def main(name: str) -> None:
     seed = seed_for(f"topmount_fit/{name}")
     out = OUT / "topmount" / name
     bandwidth = load_protocol(CONF / "test" / "topmount.yaml").get("sensors", {}).get("force")
-    res, coef = fit_top_mount(d, meas, cal, GASettings.from_config(cfg.profile.ga.topmount), seed,
+    res, coef, kept = fit_top_mount(d, meas, cal, GASettings.from_config(cfg.profile.ga.topmount), seed,
                               checkpoint=checkpoint(f"topmount_{name}"), scheduler=cfg.profile.scheduler,
                               force_bandwidth=bandwidth)
     best = {**res.best, "top_mount.F_LD": coef}
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
-            "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]"}
+            "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept}
     write_fit(out, res, meta, "N*s", d.hash(), best=best)
     fitted = d.with_overrides(best)
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
