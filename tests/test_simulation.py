@@ -174,6 +174,7 @@ EFFECT_PROBES = {
     "slot_restriction": {"piston_rebound.A_slot": 1e-5, "base_compression.A_slot": 1e-5},
     "rod_friction": {"rod_friction.F_c": 150.0, "rod_friction.F_s": 200.0},
     "top_mount_dynamics": {"top_mount.k1": 8e6, "top_mount.c0": 2000.0},
+    "piston_leakage": {"constants.leak_gap": 6e-5},
 }
 
 
@@ -194,8 +195,8 @@ def test_effect_switch(base, mono_short, effect):
     changes them. Off: the outputs do not depend on the effect's parameters
     at all (bit for bit), i.e. they are exactly those of a model without it."""
     probe = base.with_overrides(EFFECT_PROBES[effect])
-    on = _run(base, mono_short)
-    on_probe = _run(probe, mono_short)
+    on = _run(base, mono_short, **{effect: True})
+    on_probe = _run(probe, mono_short, **{effect: True})
     off = _run(base, mono_short, **{effect: False})
     off_probe = _run(probe, mono_short, **{effect: False})
     assert not np.allclose(on, on_probe, rtol=1e-4, atol=0), "parameters of an active effect must matter"

@@ -207,3 +207,12 @@ def test_rod_force_free_body():
     assert base == pytest.approx(-(4e5 - 101325.0) * math.pi * D_R**2 / 4)  # static gas force pushes out
     assert rod_force(5e5, 4e5, A_r, A_b, 101325.0, 0.0) - base == pytest.approx(1e5 * A_r)
     assert rod_force(4e5, 5e5, A_r, A_b, 101325.0, 0.0) - base == pytest.approx(-1e5 * A_b)
+
+
+def test_piston_leakage_conductance_is_laminar_annulus(p_base):
+    """Poiseuille flow in a narrow annular gap: Q = pi D h^3 dp / (12 mu L)."""
+    d = load(BASELINE)
+    mu = d["oil.rho_oil"] * d["oil.nu"]
+    G = math.pi * d["geometry.D_PT"] * d["constants.leak_gap"] ** 3 / (12 * mu * d["constants.leak_length"])
+    assert p_base[L.P_G_LEAK] == pytest.approx(G, rel=1e-12)
+    assert p_base[L.P_E_LEAK] == 0.0  # the thesis model has no leakage: off in the baseline

@@ -37,7 +37,7 @@ from .simulation import simulate
 from .variants import TOP_MOUNTS, VALVE_DESIGNS, Variant, load_variants
 
 LAB_VERSION = "dampertwin-lab 1"
-SAMPLE_KEYS = ("generator", "seed_offset", "factors", "values", "benches")
+SAMPLE_KEYS = ("generator", "seed_offset", "factors", "values", "effects", "benches")
 
 
 class LabError(ValueError):
@@ -61,6 +61,7 @@ def sample_design(nominal: Design, sample: dict) -> Design:
     """The real part behind a nominal design: factors and absolute values."""
     ov = {k: nominal[k] * f for k, f in sample["factors"].items()}
     ov.update(sample["values"])
+    ov.update({f"effects.{k}": bool(v) for k, v in sample["effects"].items()})
     return nominal.with_overrides(ov)
 
 

@@ -124,6 +124,8 @@ CONSTANTS: dict[str, str] = {
     "pt_r_o": "m",
     "wall_ratio_third_tube": "-",
     "A_bypass": "m^2",
+    "leak_gap": "m",
+    "leak_length": "m",
     "Cq_bypass": "-",
     "p_transition": "Pa",
     "zeta": "rad",
@@ -156,6 +158,7 @@ EFFECTS: dict[str, str] = {
     "slot_restriction": "valve slot orifice in series with the opening",
     "rod_friction": "LuGre rod friction, eq. 4.38-4.41",
     "top_mount_dynamics": "AutoBushFD dynamic branches, eq. 4.32-4.36 (off: static curve only)",
+    "piston_leakage": "laminar leakage past the piston band (left out by the thesis, 4.4)",
 }
 
 # Columns of the active-valve P/Q map (parameter no. 52).

@@ -31,7 +31,7 @@ from .layout import (
     P_NU, P_P0, P_P_ATM, P_P_REF, P_P_SAT, P_P_VAP, P_PSI_PT, P_PSI_TT, P_RATIO_TT, P_RHO, P_T_REF,
     P_TEMP, P_TM_C0, P_TM_C1, P_TM_C2, P_TM_FLD0, P_TM_K0, P_TM_K1, P_TM_K2, P_TM_P0, P_TM_P1,
     P_TM_P2, P_TM_Q0, P_TM_Q1, P_TM_Q2, P_TM_R, P_TM_WU, P_TM_YU, P_V_B, P_V_G0, P_VALVES,
-    P_ZETA, P_ZETA_C, P_P_TR,
+    P_ZETA, P_ZETA_C, P_P_TR, P_E_LEAK, P_G_LEAK,
     S_DAHL_BC, S_DAHL_PR, S_PB, S_PC, S_PR, S_TMW, S_TMX, S_TMY, S_VG, S_VROD, S_X0, S_XROD, S_Z,
 )
 from .rod_friction import lugre
@@ -124,6 +124,8 @@ def evaluate(t, y, p, ex, mc, md, mq, cfg, dy, out):
     Q2, a2, dF2 = _valve(p, 2, y[S_X0 + 4], y[S_X0 + 5], y[S_DAHL_BC], P_c, P_res)
     Q3, a3, _ = _valve(p, 3, y[S_X0 + 6], y[S_X0 + 7], 0.0, P_res, P_c)
     Q_p = Q0 - Q1  # rebound -> compression (THESIS-ERRATA 7)
+    if p[P_E_LEAK] > 0.5:  # laminar leakage past the piston band (not in the thesis model)
+        Q_p += p[P_G_LEAK] * (P_r - P_c)
     Q_bv = Q2 - Q3  # compression -> reserve
     rho = p[P_RHO]
     G_bp = p[P_CQ_BP] * p[P_A_BP]

@@ -26,6 +26,7 @@ EFFECT_INDEX = {
     "slot_restriction": L.P_E_SLOT,
     "rod_friction": L.P_E_ROD_FRICTION,
     "top_mount_dynamics": L.P_E_TM_DYNAMICS,
+    "piston_leakage": L.P_E_LEAK,
 }
 
 # Flow-bench defaults (THESIS-ERRATA 37): 0.2 L upstream, 2 bar back pressure (gauge)
@@ -63,6 +64,9 @@ def pack(design: Design, current: float = 1.6, effects: dict | None = None,
                       ("s2", L.P_FR_S2), ("c_comp", L.P_FR_CCOMP), ("vd", L.P_FR_VD), ("a_s", L.P_FR_AS),
                       ("alpha_s", L.P_FR_ALPHAS), ("y_unit", L.P_TM_YU), ("w_unit", L.P_TM_WU)]:
         p[idx] = c(name)
+    # laminar annular-gap conductance of the piston band: pi D h^3 / (12 mu L) [m^3/(s Pa)]
+    mu = o["rho_oil"] * o["nu"]
+    p[L.P_G_LEAK] = math.pi * D_PT * c("leak_gap") ** 3 / (12.0 * mu * c("leak_length"))
     f = d.group("rod_friction")
     p[L.P_FR_FC], p[L.P_FR_FS], p[L.P_FR_KB] = f["F_c"], f["F_s"], f["k_b"]
     tm = d.group("top_mount")
