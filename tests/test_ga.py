@@ -59,3 +59,16 @@ def test_killed_fit_resumes_to_the_same_result(tmp_path):
     # a checkpoint of other inputs is not reused
     other = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, checkpoint=ck, progress=False, context="other data")
     assert other.best == fresh.best
+
+
+def test_dask_scheduler_runs_the_same_code_path():
+    """With a scheduler address the population is split into chunks mapped on
+    a Dask cluster (here an in-process LocalCluster): same fit, same result."""
+    import distributed  # a dev dependency
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc:
+        ev = Evaluator(bowl, scheduler=lc.scheduler_address, chunks=3)
+        on_cluster = run_ga(SPECS, ev, SETTINGS, seed=5, progress=False)
+        ev._client.close()
+    local = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=5, progress=False)
+    assert on_cluster.best == local.best and on_cluster.best_objective == local.best_objective

@@ -94,9 +94,9 @@ class Evaluator:
         if self._client is None:
             try:
                 from dask.distributed import Client
-            except ImportError as e:  # pragma: no cover - dask is optional
+            except ImportError as e:
                 raise RuntimeError("a Dask scheduler is configured but dask.distributed is not installed "
-                                   "(pip install 'dask[distributed]')") from e
+                                   "(pip install -e '.[dask]')") from e
             self._client = Client(self.scheduler)
         parts = np.array_split(X, min(self.chunks, len(X)))
         futures = self._client.map(self.f, parts, pure=False)
