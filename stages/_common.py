@@ -27,6 +27,16 @@ def config():
     return compose([f"profile={params()['profile']}"], ROOT)
 
 
+def config_hash() -> str:
+    """Hash of the composed configuration and params.yaml (carried by every artifact)."""
+    import hashlib
+
+    from omegaconf import OmegaConf
+
+    blob = json.dumps({"config": OmegaConf.to_container(config(), resolve=True), "params": params()}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
 def baseline() -> Design:
     return load(CONF / "design" / "baseline.yaml")
 
@@ -70,6 +80,7 @@ def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dic
     history (Parquet) and metrics (objective before / after, failures)."""
     from dampertwin.io import write_frame
 
+    meta = {**meta, "config_hash": config_hash()}
     write_overlay(out / "overlay.yaml", res.best if best is None else best, meta)
     write_frame(out / "history.parquet",
                 res.history.rename(columns={"best": f"best [{unit}]", "mean": f"mean [{unit}]"}),

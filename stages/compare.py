@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from _common import CONF, MEASURED, OUT, config, read_overlay, write_json, write_text
+from _common import CONF, MEASURED, OUT, config, config_hash, read_overlay, write_json, write_text
 from dampertwin import kpi, report
 from dampertwin.io import read_frame, runs, write_frame
 from dampertwin.protocols import load_protocol
@@ -57,7 +57,8 @@ def main() -> None:
     plt.close(fig)
 
     t65, t66 = kpi.table_6_5(rows65), kpi.table_6_6(rows66)
-    meta = {"profile": cfg.profile.name, "seed": int(cfg.seed), "kpi": "thesis tables 6.5 / 6.6",
+    meta = {"profile": cfg.profile.name, "seed": int(cfg.seed), "config_hash": config_hash(),
+            "kpi": "thesis tables 6.5 / 6.6",
             "psd": "Welch 2 Hz resolution, mean over a 10 Hz band, dB re 1 g^2/Hz"}
     write_frame(OUT / "table_6_5.parquet", t65, meta)
     write_frame(OUT / "table_6_6.parquet", t66, meta)

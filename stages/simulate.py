@@ -10,7 +10,7 @@ import sys
 
 import pandas as pd
 
-from _common import CONF, MEASURED, OUT, config
+from _common import CONF, MEASURED, OUT, config, config_hash
 from dampertwin.design import load
 from dampertwin.io import read_frame, runs, write_frame
 from dampertwin.protocols import load_protocol
@@ -51,7 +51,8 @@ def main(case: str) -> None:
             frames.append(pd.DataFrame(cols).assign(run=name))
         write_frame(OUT / "sim" / case / f"{test}.parquet", pd.concat(frames, ignore_index=True),
                     {"synthetic": False, "simulated": True, "case": case, "protocol": test,
-                     "design_hash": design.hash(), "profile": cfg.profile.name, "measured_seed": mmeta.get("seed"),
+                     "design_hash": design.hash(), "config_hash": config_hash(), "profile": cfg.profile.name,
+                     "measured_seed": mmeta.get("seed"),
                      "input": "recorded displacement of the measurement, low-passed",
                      "sensors [Hz]": sensors})
 
