@@ -72,3 +72,22 @@ def test_dask_scheduler_runs_the_same_code_path():
         ev._client.close()
     local = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=5, progress=False)
     assert on_cluster.best == local.best and on_cluster.best_objective == local.best_objective
+
+
+def test_bad_calibration_config_names_file_and_item():
+    from conftest import BASELINE
+
+    from dampertwin.calibration.approach1 import specs_from_config
+    from dampertwin.design import load
+
+    d = load(BASELINE)
+    ok = specs_from_config(d, [{"name": "a", "window": [0.5, 2.0]}], prefix="piston_rebound.", where="v.yaml")
+    assert ok[0].lo == pytest.approx(150.0) and ok[0].hi == pytest.approx(600.0)
+    for bad, why in (([{"name": "zz", "window": [0.5, 2]}], "unknown design parameter"),
+                     ([{"name": "a"}], "exactly one of"),
+                     ([{"name": "a", "window": [0.5, 2], "scale": "cubic"}], "scale"),
+                     ([{"name": "c", "window": [0.5, 2], "scale": "log"}], "positive lower bound"),
+                     ([], "non-empty list")):
+        with pytest.raises(ValueError, match=why) as ei:
+            specs_from_config(d, bad, prefix="piston_rebound.", where="v.yaml")
+        assert "v.yaml" in str(ei.value)

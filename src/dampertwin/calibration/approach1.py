@@ -35,24 +35,43 @@ def integral_abs_error(t: np.ndarray, measured: np.ndarray, simulated: np.ndarra
     return float(np.trapezoid(e, t))
 
 
-def specs_from_config(design: Design, items: list, prefix: str = "") -> list[ParamSpec]:
+def specs_from_config(design: Design, items: list, prefix: str = "",
+                      where: str = "calibration config") -> list[ParamSpec]:
     """Search space: each item names a parameter and either absolute
     ``bounds`` or a ``window`` of factors on the nominal value; windows are
-    clipped to the design's calibration bounds (thesis tables 6.1 / 6.4)."""
+    clipped to the design's calibration bounds (thesis tables 6.1 / 6.4).
+    A bad item raises ValueError naming ``where`` and the item."""
     specs = []
-    for it in items:
-        key = prefix + it["name"] if prefix else it["key"]
-        p = design.param(key) if not key.startswith("constants.") else None
+    if not isinstance(items, list) or not items:
+        raise ValueError(f"{where}: expected a non-empty list of parameters to fit")
+    for i, it in enumerate(items):
+        label = f"{where}: item {i} ({it!r})"
+        if not isinstance(it, dict) or ("name" not in it and "key" not in it):
+            raise ValueError(f"{label}: needs 'name' (within the group) or 'key' (group.name)")
+        if ("bounds" in it) == ("window" in it):
+            raise ValueError(f"{label}: give exactly one of 'bounds: [lo, hi]' or 'window: [f_lo, f_hi]'")
+        if it.get("scale", "lin") not in ("lin", "log"):
+            raise ValueError(f"{label}: scale must be 'lin' or 'log'")
+        key = prefix + it["name"] if "name" in it else it["key"]
+        try:
+            value = design[key]
+            p = design.param(key) if not key.startswith("constants.") else None
+        except KeyError as e:
+            raise ValueError(f"{label}: unknown design parameter {key!r}: {e}") from None
+        rng = it.get("bounds", it.get("window"))
+        if not (isinstance(rng, list) and len(rng) == 2 and all(isinstance(x, (int, float)) for x in rng)):
+            raise ValueError(f"{label}: bounds / window must be two numbers")
         if "bounds" in it:
-            lo, hi = map(float, it["bounds"])
+            lo, hi = map(float, rng)
         else:
-            v = design[key]
-            a, b = (float(f) * v for f in it["window"])
+            a, b = (float(f) * value for f in rng)
             lo, hi = min(a, b), max(a, b)
             if p is not None and p.bounds is not None:
                 lo, hi = max(lo, p.bounds[0]), min(hi, p.bounds[1])
         if not lo < hi:
-            raise ValueError(f"empty search interval for {key}: [{lo}, {hi}]")
+            raise ValueError(f"{label}: empty search interval for {key}: [{lo}, {hi}]")
+        if it.get("scale") == "log" and lo <= 0:
+            raise ValueError(f"{label}: a log scale needs a positive lower bound, got {lo}")
         specs.append(ParamSpec(key, lo, hi, it.get("scale", "lin")))
     return specs
 
@@ -103,8 +122,9 @@ def _record_input(df: pd.DataFrame, column: str, kind: str, cutoff: float):
 def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, settings: GASettings, seed: int, *,
               bench: dict, checkpoint=None, scheduler=None, progress=True) -> FitResult:
     """Fit one valve's stiffness (and shim friction) to its flow-bench record."""
-    items = cal["shim" if valve in SHIM_VALVES else "intake"]
-    specs = specs_from_config(design, items, prefix=f"{valve}.")
+    kind = "shim" if valve in SHIM_VALVES else "intake"
+    specs = specs_from_config(design, cal.get(kind), prefix=f"{valve}.",
+                              where=f"conf/calibration/valves.yaml: {kind}")
     cases = []
     for _, g in runs(measured):
         t, ex = _record_input(g, "flow [m^3/s]", "flow", cal["input_cutoff"])
@@ -130,7 +150,7 @@ def fit_compliance(design: Design, measured: pd.DataFrame, cal: dict, settings: 
                    checkpoint=None, scheduler=None, progress=True, force_bandwidth: float | None = None) -> FitResult:
     """Fit gas content and oil bulk modulus to the damper-level sine test;
     the simulated force passes the force transducer's bandwidth."""
-    specs = specs_from_config(design, cal["parameters"])
+    specs = specs_from_config(design, cal.get("parameters"), where="conf/calibration/compliance.yaml: parameters")
     cases = []
     for _, g in runs(measured):
         t, ex = _record_input(g, "displacement [m]", "displacement", cal["input_cutoff"])
@@ -164,7 +184,8 @@ def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: G
     never ends worse than the uncalibrated design. Returns (result, static
     curve coefficients, which curve was kept)."""
     ls_coef = fit_static_curve(measured, cal["static"]["run"], cal["static"]["order"])
-    specs = specs_from_config(design, cal["parameters"], prefix="top_mount.")
+    specs = specs_from_config(design, cal.get("parameters"), prefix="top_mount.",
+                              where="conf/calibration/topmount.yaml: parameters")
     g = dict(runs(measured))[cal["dynamic_run"]]
     t, ex = _record_input(g, "displacement [m]", "displacement", cal["input_cutoff"])
     cases = [(t, g["force [N]"].to_numpy(), ex, {})]
