@@ -99,13 +99,13 @@ def p_base():
 
 def test_closed_valve_passes_only_bleed(p_base):
     p = p_base
-    rho, nu, ptr = p[L.P_RHO], p[L.P_NU], p[L.P_P_TR]
+    rho, nu, ptr = p[L.P.RHO], p[L.P.NU], p[L.P.P_TR]
     for k in range(4):
-        o = L.P_VALVES + k * V_SIZE
+        o = L.P.VALVES + k * V_SIZE
         for dp in (-5e5, 2e5, 3e6):
             q, _, _, A_f = valves.valve_flow(p, o, -1e-6, dp, rho, nu, ptr, True, False)
             assert A_f == 0.0
-            bleed = p[o + valves.V_CQB] * p[o + valves.V_AB]
+            bleed = p[o + valves.V.CQB] * p[o + valves.V.AB]
             assert q == pytest.approx(valves.orifice_flow(bleed, dp, rho, ptr), rel=1e-12)
             if k in (1, 3):  # intake valves have no bleed: a closed intake passes nothing
                 assert q == 0.0
@@ -115,8 +115,8 @@ def test_closed_valve_passes_only_bleed(p_base):
 
 def test_valve_flow_rises_with_lift(p_base):
     p = p_base
-    o = L.P_VALVES
-    qs = [valves.valve_flow(p, o, x, 2e6, p[L.P_RHO], p[L.P_NU], p[L.P_P_TR], True, True)[0]
+    o = L.P.VALVES
+    qs = [valves.valve_flow(p, o, x, 2e6, p[L.P.RHO], p[L.P.NU], p[L.P.P_TR], True, True)[0]
           for x in (0.0, 1e-5, 5e-5, 2e-4)]
     assert all(a < b for a, b in zip(qs, qs[1:]))
 
@@ -214,5 +214,5 @@ def test_piston_leakage_conductance_is_laminar_annulus(p_base):
     d = load(BASELINE)
     mu = d["oil.rho_oil"] * d["oil.nu"]
     G = math.pi * d["geometry.D_PT"] * d["constants.leak_gap"] ** 3 / (12 * mu * d["constants.leak_length"])
-    assert p_base[L.P_G_LEAK] == pytest.approx(G, rel=1e-12)
-    assert p_base[L.P_E_LEAK] == 0.0  # the thesis model has no leakage: off in the baseline
+    assert p_base[L.P.G_LEAK] == pytest.approx(G, rel=1e-12)
+    assert p_base[L.P.E_LEAK] == 0.0  # the thesis model has no leakage: off in the baseline

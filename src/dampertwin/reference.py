@@ -1,8 +1,12 @@
-"""Reference path: the same submodel equations run as plain Python functions
-(numba disabled) under ``scipy.integrate.solve_ivp(method="BDF")``.
+"""Reference path: the *same* model equations (the same source code, run as
+plain Python with numba disabled) under another integrator,
+``scipy.integrate.solve_ivp(method="BDF")``.
 
-It is the independent check of the compiled integrator in the tests and the
-naive baseline of the benchmark. Numba cannot be switched off inside a
+What it checks: the compiled Rodas4 integrator, its coloured Jacobian, dense
+output and step control, and the numba compilation itself. What it cannot
+check: the equations, since both paths run them (the submodel tests against
+analytic cases and hand-derived balances do that). It is also the naive
+baseline of the solver benchmark. Numba cannot be switched off inside a
 process that has compiled the model, so unless ``NUMBA_DISABLE_JIT=1`` is
 already set, the run happens in a child process that has it set.
 """
@@ -24,34 +28,35 @@ from .simulation import Result, _channels, _setup, _time_grid
 from .solver import OK, STATUS_TEXT, RunStats
 
 
-def _solve(p, ex, mc, md, mq, cfg, y0, t_out, rtol, atol_scale):
+def _solve(p, ex, aux, configuration, y0, t_out, rtol, atol_scale):
     """Integrate with scipy BDF; returns (outputs[n_t, N_OUT], nfev, status)."""
     from scipy.integrate import solve_ivp
 
-    from .model.damper import evaluate
+    from .model.damper import RHS
     from .model.layout import N_OUT
 
+    evaluate = RHS[str(configuration)]
     n = len(y0)
     dy = np.empty(n)
     scratch = np.empty(N_OUT)
 
     def rhs(t, y):
         d = np.empty(n)
-        evaluate(t, y, p, ex, mc, md, mq, cfg, d, scratch)
+        evaluate(t, np.ascontiguousarray(y), p, ex, aux, d, scratch)
         return d
 
     sol = solve_ivp(rhs, (t_out[0], t_out[-1]), y0, method="BDF", t_eval=t_out, rtol=rtol,
                     atol=rtol * atol_scale, max_step=1e-3)
     out = np.full((len(t_out), N_OUT), np.nan)
     for i in range(sol.y.shape[1]):
-        evaluate(sol.t[i], sol.y[:, i], p, ex, mc, md, mq, cfg, dy, out[i])
+        evaluate(sol.t[i], np.ascontiguousarray(sol.y[:, i]), p, ex, aux, dy, out[i])
     return out, sol.nfev, sol.status
 
 
 def _child(inp: str, outp: str) -> None:
     a = np.load(inp)
     t0 = time.perf_counter()
-    out, nfev, status = _solve(a["p"], a["ex"], a["mc"], a["md"], a["mq"], int(a["cfg"]), a["y0"], a["t_out"],
+    out, nfev, status = _solve(a["p"], a["ex"], a["aux"], str(a["configuration"]), a["y0"], a["t_out"],
                                float(a["rtol"]), a["atol_scale"])
     wall = time.perf_counter() - t0
     tmp = outp + ".tmp.npz"
@@ -65,14 +70,15 @@ def simulate_reference(design: Design, excitation: Excitation, configuration: st
                        timeout_s: float = 3600.0) -> Result:
     """Same interface as :func:`dampertwin.simulate`, reference integrator.
     ``result.stats.wall_s`` is the integration time inside the child process."""
-    from .model.params import initial_state, state_scales
+    from .model.active_valve import pack_map
+    from .model.layout import initial_state, state_scales
 
     cfg, p = _setup(design, excitation, configuration, current, effects, bench_valve)
     t_out = _time_grid(excitation, duration, rate)
     y0 = initial_state(p, cfg)
     pq = design.pq_map
-    arrays = dict(p=p, ex=excitation.array(), mc=pq.currents, md=pq.dps, mq=pq.flow, cfg=cfg, y0=y0, t_out=t_out,
-                  rtol=rtol, atol_scale=state_scales(cfg))
+    arrays = dict(p=p, ex=excitation.array(), aux=pack_map(pq.currents, pq.dps, pq.flow), configuration=configuration,
+                  y0=y0, t_out=t_out, rtol=rtol, atol_scale=state_scales(cfg))
     from numba import config as nb_config
 
     if nb_config.DISABLE_JIT:

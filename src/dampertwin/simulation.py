@@ -10,8 +10,12 @@ import pandas as pd
 from .design import Design
 from .excitation import Excitation
 from .model import layout as L
-from .model.params import initial_state, pack
-from .solver import RunStats, integrate, integrate_batch
+from .model.active_valve import pack_map
+from .model.damper import RHS
+from .model.layout import N_OUT, O, initial_state, state_scales
+from .model.params import pack, parameter_problems
+from .model.sparsity import sparsity
+from .solver import STATUS_TEXT, RunStats, integrate, integrate_batch
 
 DEFAULT_RATE = 10_000.0  # [Hz] output sampling
 DEFAULT_RTOL = 1e-4  # KPIs within 0.01 % of rtol 1e-8 on the 13 Hz mono-sine (bench/solver.py)
@@ -44,8 +48,9 @@ class Result:
         return df
 
 
-_BENCH_COLUMNS = {"flow [m^3/s]": L.O_U, "p upstream [Pa]": L.O_P_R, "p downstream [Pa]": L.O_P_C,
-                  "lift [m]": L.O_X0, "valve flow [m^3/s]": L.O_Q0}
+_BENCH_COLUMNS = {"flow [m^3/s]": O.U, "p upstream [Pa]": O.P_R, "p downstream [Pa]": O.P_C,
+                  "lift [m]": O.X0, "valve flow [m^3/s]": O.Q0}
+_TOPMOUNT_COLUMNS = {"displacement [m]": O.U, "velocity [m/s]": O.V, "top mount force [N]": O.F_TM}
 
 
 def _channels(cfg: int, out: np.ndarray) -> dict[str, np.ndarray]:
@@ -54,9 +59,8 @@ def _channels(cfg: int, out: np.ndarray) -> dict[str, np.ndarray]:
         ch["dp [Pa]"] = ch["p upstream [Pa]"] - ch["p downstream [Pa]"]
         return ch
     if cfg == L.CFG_TOPMOUNT:
-        return {"displacement [m]": out[:, L.O_U], "velocity [m/s]": out[:, L.O_V],
-                "top mount force [N]": out[:, L.O_F_TM]}
-    skip = {L.O_F_TM, L.O_A_ROD} if cfg == L.CFG_DAMPER else set()
+        return {k: out[:, i] for k, i in _TOPMOUNT_COLUMNS.items()}
+    skip = {O.F_TM, O.A_ROD} if cfg == L.CFG_DAMPER else set()
     return {name: out[:, i] for i, (name, _) in enumerate(L.OUTPUTS) if i not in skip}
 
 
@@ -69,10 +73,24 @@ def _setup(design, excitation, configuration, current, effects, bench_valve, ben
         raise ValueError(f"the {configuration!r} configuration takes a {want} excitation, got {excitation.kind!r}")
     if cfg == L.CFG_VALVE and bench_valve not in L.VALVE_NAMES:
         raise ValueError(f"the valve configuration needs bench_valve in {L.VALVE_NAMES}, got {bench_valve!r}")
+    if not (isinstance(current, (int, float, np.floating)) and np.isfinite(current)):
+        raise ValueError(f"current must be a finite number [A], got {current!r}")
+    if cfg in (L.CFG_DAMPER, L.CFG_MODULE):
+        lo, hi = float(np.min(design.pq_map.currents)), float(np.max(design.pq_map.currents))
+        if not lo - 1e-9 <= current <= hi + 1e-9:
+            raise ValueError(f"current {current!r} A is outside the active-valve map of design {design.name!r} "
+                             f"({lo:g}-{hi:g} A); the map is not extrapolated")
     p = pack(design, current=current, effects=effects, bench_valve=bench_valve, **(bench or {}))
-    p[L.P_EX_T0] = excitation.t0
-    p[L.P_EX_DT] = excitation.dt
+    p[L.P.EX_T0] = excitation.t0
+    p[L.P.EX_DT] = excitation.dt
     return cfg, p
+
+
+def _problem(configuration, cfg, P, ex, aux, t_out):
+    """Compiled RHS, state scales and probed sparsity of a configuration."""
+    rhs = RHS[configuration]
+    sp = sparsity(rhs, cfg, P, ex, aux, (float(t_out[0]), float(t_out[-1])))
+    return dict(scales=state_scales(cfg), n_rhs_out=N_OUT, sparsity=sp), rhs
 
 
 def _time_grid(excitation, duration, rate):
@@ -93,11 +111,17 @@ def simulate(design: Design, excitation: Excitation, configuration: str = "modul
     wall-time cap returns with ``result.ok`` False and NaN after the stop.
     ``bench`` sets the flow bench (``bench_volume`` [m^3], ``bench_back_pressure`` [Pa])."""
     cfg, p = _setup(design, excitation, configuration, current, effects, bench_valve, bench)
+    bad = parameter_problems(p, configuration)
+    if bad:
+        raise ValueError(f"design {design.name!r} cannot be simulated in the {configuration!r} configuration: "
+                         + "; ".join(bad))
     t_out = _time_grid(excitation, duration, rate)
     y0 = initial_state(p, cfg)
-    pq = (design.pq_map.currents, design.pq_map.dps, design.pq_map.flow)
-    out, _, stats = integrate(p, excitation.array(), pq, cfg, y0, t_out, rtol=rtol, atol=atol,
-                              max_steps=max_steps, max_wall_s=max_wall_s, h_max=h_max)
+    aux = pack_map(design.pq_map.currents, design.pq_map.dps, design.pq_map.flow)
+    ex = excitation.array()
+    kw, rhs = _problem(configuration, cfg, p[None, :], ex, aux, t_out)
+    out, _, stats = integrate(rhs, p, ex, aux, y0, t_out, rtol=rtol, atol=atol, max_steps=max_steps,
+                              max_wall_s=max_wall_s, h_max=h_max, **kw)
     return Result(configuration, t_out, _channels(cfg, out), stats, design.hash(), current)
 
 
@@ -117,19 +141,29 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
     setups = [_setup(d, excitation, configuration, current, effects, bench_valve, bench) for d in designs]
     cfg = setups[0][0]
     P = np.vstack([s[1] for s in setups])
-    Y0 = np.vstack([initial_state(s[1], cfg) for s in setups])
+    problems = [parameter_problems(p, configuration) for p in P]
+    invalid = np.array([bool(b) for b in problems])
+    Y0 = np.vstack([initial_state(p, cfg) if not bad else np.zeros(L.N_STATES[cfg]) for p, bad in zip(P, invalid)])
     t_out = _time_grid(excitation, duration, rate)
     names = {name: i for i, (name, _) in enumerate(L.OUTPUTS)}
     if cfg == L.CFG_VALVE:
         names = dict(_BENCH_COLUMNS)
     elif cfg == L.CFG_TOPMOUNT:
-        names = {"displacement [m]": L.O_U, "velocity [m/s]": L.O_V, "top mount force [N]": L.O_F_TM}
+        names = dict(_TOPMOUNT_COLUMNS)
     cols = list(names) if channels is None else channels
     unknown = [c for c in cols if c not in names]
     if unknown:
         raise ValueError(f"unknown output channel(s) {unknown}; expected some of {list(names)}")
     idx = np.array([names[c] for c in cols], np.int64)
-    OUT, status, _ = integrate_batch(P, excitation.array(), (pqm.currents, pqm.dps, pqm.flow), cfg, Y0, t_out,
-                                     rtol=rtol, atol=atol, max_steps=max_steps, max_wall_s=max_wall_s,
-                                     h_max=h_max, channels=idx)
+    aux = pack_map(pqm.currents, pqm.dps, pqm.flow)
+    ex = excitation.array()
+    valid = P[~invalid] if np.any(~invalid) else P[:1]
+    kw, rhs = _problem(configuration, cfg, valid, ex, aux, t_out)
+    OUT, status, _ = integrate_batch(rhs, P, ex, aux, Y0, t_out, rtol=rtol, atol=atol, max_steps=max_steps,
+                                     max_wall_s=max_wall_s, h_max=h_max, channels=idx, skip=invalid, **kw)
     return t_out, {c: OUT[:, :, k] for k, c in enumerate(cols)}, status
+
+
+def batch_status_text(status: np.ndarray) -> list[str]:
+    """Readable reason per member of a ``simulate_batch`` status array."""
+    return [STATUS_TEXT.get(int(s), f"status {int(s)}") for s in status]

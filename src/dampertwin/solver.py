@@ -1,26 +1,43 @@
-"""Compiled adaptive stiff integrator for the damper model.
+"""Compiled adaptive stiff integrator for any compiled right-hand side.
 
 Rodas4 (Hairer & Wanner, Solving ODEs II, 1996: the 6-stage, order-4(3),
 stiffly accurate Rosenbrock method of their RODAS code, with its dense output)
-compiled with numba, on scaled states (bar, mm, cm^3, ...), with a compiled
+compiled with numba, on scaled states, with a compiled coloured
 finite-difference Jacobian, dense output written at the requested sampling
 times, and caps on steps (inside) and wall time (between chunks). No Python
 runs per time step. ``integrate_batch`` runs many parameter sets in parallel
 threads (``prange``) for GA populations.
+
+The right-hand side is a first-class compiled function with the signature
+``rhs(t, y, p, ex, aux, dy, out)`` (:func:`rhs_signature`): time [s], state
+y, parameter vector p, tabulated input ex[2, n], auxiliary data aux (e.g. a
+look-up table), the state derivative dy to fill and output channels out to
+fill. Compile it with ``@njit(rhs_signature(), cache=True)``; this module
+knows nothing about what it integrates.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
 
-from .model.damper import evaluate
-from .model.layout import N_OUT
+
+def rhs_signature():
+    """Numba signature every right-hand side must be compiled with:
+    void(t, y, p, ex, aux, dy, out)."""
+    a1 = types.float64[::1]
+    return types.void(types.float64, a1, a1, types.float64[:, ::1], a1, a1, a1)
+
+
+RHS = types.FunctionType(rhs_signature())
+_A1 = types.float64[::1]
+_A2 = types.float64[:, ::1]
+_A3 = types.float64[:, :, ::1]
+_I1 = types.int64[::1]
 
 # Rodas4 coefficients (Hairer & Wanner, RODAS, METH = 1)
 _G = 0.25
@@ -42,9 +59,10 @@ _E31, _E32, _E33, _E34, _E35 = (-0.6762803392801253, 0.6087714651680015e01, 0.16
                                 0.2476722511418386e02, -0.6594389125716872e01)
 
 # status codes
-OK, MAX_STEPS, STEP_UNDERFLOW, NON_FINITE, WALL_TIME = 0, 1, 2, 3, 4
+OK, MAX_STEPS, STEP_UNDERFLOW, NON_FINITE, WALL_TIME, INVALID, STALLED = 0, 1, 2, 3, 4, 5, 6
 STATUS_TEXT = {OK: "ok", MAX_STEPS: "step cap reached", STEP_UNDERFLOW: "step size underflow",
-               NON_FINITE: "non-finite state", WALL_TIME: "wall-time cap reached"}
+               NON_FINITE: "non-finite state", WALL_TIME: "wall-time cap reached",
+               INVALID: "invalid parameters", STALLED: "no progress"}
 # stats slots
 ST_STEPS, ST_ACCEPTED, ST_REJECTED, ST_FEVALS, ST_JACS = 0, 1, 2, 3, 4
 # controller slots (persist across chunks)
@@ -52,19 +70,23 @@ CT_H, CT_HOLD, CT_ERROLD, CT_FIRST, CT_REJECT = 0, 1, 2, 3, 4
 
 SAFE, FAC_MAX, FAC_MIN = 0.9, 5.0, 1.0 / 6.0
 H_MIN_REL = 1e-14
+FD_EPS = 1.4901161193847656e-08  # sqrt(machine epsilon): forward-difference increment (relative)
+
+_JIT = dict(cache=True, error_model="numpy")  # 1/0 -> inf -> a NON_FINITE status, never an exception
 
 
-@njit(cache=True)
-def _f(t, z, sc, p, ex, mc, md, mq, cfg, dz, y, dy, out):
+@njit(**_JIT)
+def _f(rhs, t, z, sc, p, ex, aux, dz, y, dy, out):
+    """Scaled right-hand side: dz = rhs(t, z*sc) / sc."""
     n = z.shape[0]
     for i in range(n):
         y[i] = z[i] * sc[i]
-    evaluate(t, y, p, ex, mc, md, mq, cfg, dy, out)
+    rhs(t, y, p, ex, aux, dy, out)
     for i in range(n):
         dz[i] = dy[i] / sc[i]
 
 
-@njit(cache=True)
+@njit(**_JIT)
 def _lu_factor(a, piv):
     n = a.shape[0]
     for k in range(n):
@@ -75,7 +97,7 @@ def _lu_factor(a, piv):
                 big = abs(a[i, k])
                 m = i
         piv[k] = m
-        if big == 0.0:
+        if big == 0.0 or not math.isfinite(big):
             return False
         if m != k:
             for j in range(n):
@@ -92,7 +114,7 @@ def _lu_factor(a, piv):
     return True
 
 
-@njit(cache=True)
+@njit(**_JIT)
 def _lu_solve(a, piv, b):
     n = a.shape[0]
     for k in range(n):
@@ -113,19 +135,70 @@ def _lu_solve(a, piv, b):
         b[i] = s / a[i, i]
 
 
-@njit(cache=True)
-def rodas4(z, t, t_end, t_pause, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, i_out, out_buf,
-           channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx):
+@njit(**_JIT)
+def _fd_jacobian(rhs, t, z, f0, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y, dy,
+                 out):
+    """Jacobian d(dz)/dz by coloured forward differences (Curtis, Powell &
+    Reid 1974: one RHS evaluation per colour of the sparsity pattern) and
+    the time derivative ft by one more forward difference."""
+    n = z.shape[0]
+    for c in range(n_colours):
+        for j in range(n):
+            if colour[j] == c:
+                zs[j] = z[j]
+                dl[j] = FD_EPS * max(abs(z[j]), 1.0)
+                z[j] += dl[j]
+        _f(rhs, t, z, sc, p, ex, aux, f1, y, dy, out)
+        for j in range(n):
+            if colour[j] == c:
+                z[j] = zs[j]
+                for q in range(col_ptr[j], col_ptr[j + 1]):
+                    r = row_idx[q]
+                    jac[r, j] = (f1[r] - f0[r]) / dl[j]
+    dtt = FD_EPS * max(abs(t), 1e-3)
+    _f(rhs, t + dtt, z, sc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        ft[i] = (f1[i] - f0[i]) / dtt
+
+
+@njit(types.void(RHS, types.float64, _A1, _A1, _A1, _A2, _A1, _I1, types.int64, _I1, _I1, _A2, _A1, types.int64),
+      **_JIT)
+def fd_jacobian(rhs, t, z, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, n_rhs_out):
+    """Python-callable coloured finite-difference Jacobian of the scaled
+    system at (t, z) (for tests and for checking a sparsity pattern)."""
+    n = z.shape[0]
+    f0 = np.empty(n)
+    f1 = np.empty(n)
+    zs = np.empty(n)
+    dl = np.empty(n)
+    y = np.empty(n)
+    dy = np.empty(n)
+    out = np.empty(n_rhs_out)
+    zz = z.copy()
+    _f(rhs, t, zz, sc, p, ex, aux, f0, y, dy, out)
+    _fd_jacobian(rhs, t, zz, f0, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y, dy,
+                 out)
+
+
+_RODAS_SIG = types.UniTuple(types.float64, 3)(
+    RHS, _A1, types.float64, types.float64, types.float64, _A1, _A2, _A1, _A1, types.float64, types.float64,
+    types.float64, _A1, types.int64, _A2, _I1, _A1, types.int64[::1], types.int64, _I1, types.int64, _I1, _I1,
+    types.int64, types.float64)
+
+
+@njit(_RODAS_SIG, **_JIT)
+def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+           channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h):
     """Integrate scaled state z (in place) from t towards t_end, returning
     after the first accepted step that reaches t_pause (so pausing for a
     wall-time check never changes the step sequence). Writes selected output
-    channels at t_out[i_out:] <= t into out_buf. The Jacobian is
-    built by forward differences, one RHS evaluation per column colour
-    (sparsity.colouring). Returns (status, t, i_out)."""
+    channels at t_out[i_out:] <= t into out_buf. ``fixed_h`` > 0 takes steps
+    of exactly that size without error control (for convergence tests).
+    Returns (status, t, i_out) as floats."""
     n = z.shape[0]
     y = np.empty(n)
     dy = np.empty(n)
-    out = np.empty(N_OUT)
+    out = np.empty(n_rhs_out)
     f0 = np.empty(n)
     f1 = np.empty(n)
     ft = np.empty(n)
@@ -144,94 +217,85 @@ def rodas4(z, t, t_end, t_pause, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, 
     znew = np.empty(n)
     zd = np.empty(n)
     n_out = t_out.shape[0]
-    h = ctrl[CT_H]
-    eps = 1.4901161193847656e-08
+    h = fixed_h if fixed_h > 0.0 else ctrl[CT_H]
 
-    _f(t, z, sc, p, ex, mc, md, mq, cfg, f0, y, dy, out)
+    _f(rhs, t, z, sc, p, ex, aux, f0, y, dy, out)
     stats[ST_FEVALS] += 1
     while t_end - t > H_MIN_REL * max(abs(t), 1.0):
         if stats[ST_STEPS] >= max_steps:
             ctrl[CT_H] = h
-            return MAX_STEPS, t, i_out
-        # Jacobian by coloured forward differences, and df/dt
-        for c in range(n_colours):
-            for j in range(n):
-                if colour[j] == c:
-                    zs[j] = z[j]
-                    dl[j] = eps * max(abs(z[j]), 1.0)
-                    z[j] += dl[j]
-            _f(t, z, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
-            for j in range(n):
-                if colour[j] == c:
-                    z[j] = zs[j]
-                    for q in range(col_ptr[j], col_ptr[j + 1]):
-                        r = row_idx[q]
-                        jac[r, j] = (f1[r] - f0[r]) / dl[j]
-        dtt = eps * max(abs(t), 1e-3)
-        _f(t + dtt, z, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
-        for i in range(n):
-            ft[i] = (f1[i] - f0[i]) / dtt
+            return float(MAX_STEPS), t, float(i_out)
+        _fd_jacobian(rhs, t, z, f0, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y,
+                     dy, out)
         stats[ST_FEVALS] += n_colours + 1
         stats[ST_JACS] += 1
         while True:  # attempt steps until one is accepted
             stats[ST_STEPS] += 1
             if stats[ST_STEPS] > max_steps:
                 ctrl[CT_H] = h
-                return MAX_STEPS, t, i_out
+                return float(MAX_STEPS), t, float(i_out)
+            if fixed_h > 0.0:
+                h = fixed_h
             h = min(h, h_max)
             if t + 1.01 * h >= t_end:  # land on t_end, no sliver step after it
                 h = t_end - t
-            if h <= H_MIN_REL * max(abs(t), 1.0):
+            if not h > H_MIN_REL * max(abs(t), 1.0):
                 ctrl[CT_H] = h
-                return STEP_UNDERFLOW, t, i_out
+                return float(STEP_UNDERFLOW), t, float(i_out)
             for i in range(n):
                 for j in range(n):
                     a[i, j] = -jac[i, j]
                 a[i, i] += 1.0 / (_G * h)
             ok = _lu_factor(a, piv)
             finite = ok
+            err = 0.0
             if ok:
                 for i in range(n):
                     k1[i] = f0[i] + h * _D1 * ft[i]
                 _lu_solve(a, piv, k1)
                 for i in range(n):
                     yt[i] = z[i] + _A21 * k1[i]
-                _f(t + _C2 * h, yt, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
+                _f(rhs, t + _C2 * h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     k2[i] = f1[i] + h * _D2 * ft[i] + _C21 * k1[i] / h
                 _lu_solve(a, piv, k2)
                 for i in range(n):
                     yt[i] = z[i] + _A31 * k1[i] + _A32 * k2[i]
-                _f(t + _C3 * h, yt, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
+                _f(rhs, t + _C3 * h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     k3[i] = f1[i] + h * _D3 * ft[i] + (_C31 * k1[i] + _C32 * k2[i]) / h
                 _lu_solve(a, piv, k3)
                 for i in range(n):
                     yt[i] = z[i] + _A41 * k1[i] + _A42 * k2[i] + _A43 * k3[i]
-                _f(t + _C4 * h, yt, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
+                _f(rhs, t + _C4 * h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     k4[i] = f1[i] + h * _D4 * ft[i] + (_C41 * k1[i] + _C42 * k2[i] + _C43 * k3[i]) / h
                 _lu_solve(a, piv, k4)
                 for i in range(n):
                     yt[i] = z[i] + _A51 * k1[i] + _A52 * k2[i] + _A53 * k3[i] + _A54 * k4[i]
-                _f(t + h, yt, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
+                _f(rhs, t + h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     k5[i] = f1[i] + (_C51 * k1[i] + _C52 * k2[i] + _C53 * k3[i] + _C54 * k4[i]) / h
                 _lu_solve(a, piv, k5)
                 for i in range(n):
-                    yt[i] += k5[i]
-                _f(t + h, yt, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
+                    yt[i] += k5[i]  # the embedded order-3 solution
+                _f(rhs, t + h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     err_v[i] = f1[i] + (_C61 * k1[i] + _C62 * k2[i] + _C63 * k3[i] + _C64 * k4[i] + _C65 * k5[i]) / h
                 _lu_solve(a, piv, err_v)
                 stats[ST_FEVALS] += 5
-                err = 0.0
                 for i in range(n):
-                    znew[i] = yt[i] + err_v[i]
+                    znew[i] = yt[i] + err_v[i]  # the order-4 solution
                     sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
                     err += (err_v[i] / sk) ** 2
                 err = math.sqrt(err / n)
                 finite = math.isfinite(err)
+            if fixed_h > 0.0:
+                if not finite:
+                    ctrl[CT_H] = h
+                    return float(NON_FINITE), t, float(i_out)
+                hnew = h
+                break
             if not finite:
                 stats[ST_REJECTED] += 1
                 h *= 0.25
@@ -240,7 +304,7 @@ def rodas4(z, t, t_end, t_pause, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, 
             fac = max(FAC_MIN, min(FAC_MAX, err ** 0.25 / SAFE))
             hnew = h / fac
             if err <= 1.0:
-                if ctrl[CT_FIRST] == 0.0:
+                if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller
                     facpred = (ctrl[CT_HOLD] / h) * (err * err / ctrl[CT_ERROLD]) ** 0.25 / SAFE
                     facpred = max(FAC_MIN, min(FAC_MAX, facpred))
                     fac = max(fac, facpred)
@@ -264,7 +328,7 @@ def rodas4(z, t, t_end, t_pause, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, 
                 c3 = _E21 * k1[i] + _E22 * k2[i] + _E23 * k3[i] + _E24 * k4[i] + _E25 * k5[i]
                 c4 = _E31 * k1[i] + _E32 * k2[i] + _E33 * k3[i] + _E34 * k4[i] + _E35 * k5[i]
                 zd[i] = z[i] * s1 + s * (znew[i] + s1 * (c3 + s * c4))
-            _f(t_out[i_out], zd, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
+            _f(rhs, t_out[i_out], zd, sc, p, ex, aux, f1, y, dy, out)
             for c in range(channels.shape[0]):
                 out_buf[i_out, c] = out[channels[c]]
             i_out += 1
@@ -275,37 +339,40 @@ def rodas4(z, t, t_end, t_pause, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, 
         for i in range(n):
             if not math.isfinite(z[i]):
                 ctrl[CT_H] = h
-                return NON_FINITE, t, i_out
-        _f(t, z, sc, p, ex, mc, md, mq, cfg, f0, y, dy, out)
+                return float(NON_FINITE), t, float(i_out)
+        _f(rhs, t, z, sc, p, ex, aux, f0, y, dy, out)
         stats[ST_FEVALS] += 1
         h = hnew
         if t >= t_pause:
             ctrl[CT_H] = h
-            return OK, t, i_out
+            return float(OK), t, float(i_out)
     # flush outputs at t_end that rounding left unwritten
     while i_out < n_out and t_out[i_out] <= t_end * (1.0 + 1e-15):
-        _f(t_out[i_out], z, sc, p, ex, mc, md, mq, cfg, f1, y, dy, out)
+        _f(rhs, t_out[i_out], z, sc, p, ex, aux, f1, y, dy, out)
         for c in range(channels.shape[0]):
             out_buf[i_out, c] = out[channels[c]]
         i_out += 1
     ctrl[CT_H] = h
-    return OK, t_end, i_out
+    return float(OK), t_end, float(i_out)
 
 
-@njit(cache=True, parallel=True)
-def _batch_chunk(Z, T, t_end, t_pause, P, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
-                 channels, CTRL, STATS, STATUS, max_steps, colour, n_colours, col_ptr, row_idx):
+@njit(types.void(RHS, _A2, _A1, types.float64, types.float64, _A2, _A2, _A1, _A1, types.float64, types.float64,
+                 types.float64, _A1, types.int64[::1], _A3, _I1, _A2, types.int64[:, ::1], types.int64[::1],
+                 types.int64, _I1, types.int64, _I1, _I1, types.int64),
+      parallel=True, **_JIT)
+def _batch_chunk(rhs, Z, T, t_end, t_pause, P, ex, aux, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
+                 channels, CTRL, STATS, STATUS, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out):
     m = Z.shape[0]
     for b in prange(m):
         if STATUS[b] >= 0:
             continue
-        st, tb, io = rodas4(Z[b], T[b], t_end, t_pause, P[b], ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out,
+        st, tb, io = rodas4(rhs, Z[b], T[b], t_end, t_pause, P[b], ex, aux, sc, rtol, atol, h_max, t_out,
                             I_OUT[b], OUT[b], channels, CTRL[b], STATS[b], max_steps, colour, n_colours,
-                            col_ptr, row_idx)
+                            col_ptr, row_idx, n_rhs_out, 0.0)
         T[b] = tb
-        I_OUT[b] = io
-        if st != OK:
-            STATUS[b] = st
+        I_OUT[b] = int(io)
+        if int(st) != OK:
+            STATUS[b] = int(st)
 
 
 @dataclass
@@ -323,34 +390,133 @@ class RunStats:
     def ok(self) -> bool:
         return self.status == OK
 
+    @property
+    def rejection_rate(self) -> float:
+        return self.rejected / self.steps if self.steps else 0.0
 
-@functools.lru_cache(maxsize=None)
-def _colouring(cfg):
-    from .model.sparsity import colouring, pattern
+    @property
+    def fevals_per_step(self) -> float:
+        return self.fevals / self.accepted if self.accepted else float("nan")
 
-    return colouring(pattern(cfg))
+
+@dataclass(frozen=True)
+class Sparsity:
+    """A Jacobian sparsity pattern and its column colouring (Curtis-Powell-Reid)."""
+
+    pattern: np.ndarray  # bool [n, n]: may d(dy_i)/d(y_j) be non-zero
+    colour: np.ndarray  # colour of each column
+    n_colours: int
+    col_ptr: np.ndarray  # CSC structure of the pattern
+    row_idx: np.ndarray
+
+    @classmethod
+    def from_pattern(cls, J: np.ndarray) -> "Sparsity":
+        J = np.asarray(J, bool)
+        colour, nc = colouring(J)
+        col_ptr = np.zeros(J.shape[1] + 1, np.int64)
+        rows: list[int] = []
+        for j in range(J.shape[1]):
+            r = np.flatnonzero(J[:, j])
+            rows.extend(r)
+            col_ptr[j + 1] = col_ptr[j] + len(r)
+        return cls(J, colour, nc, col_ptr, np.asarray(rows, np.int64))
+
+    @classmethod
+    def dense(cls, n: int) -> "Sparsity":
+        return cls.from_pattern(np.ones((n, n), bool))
+
+    def args(self):
+        return self.colour, self.n_colours, self.col_ptr, self.row_idx
+
+
+def colouring(J: np.ndarray) -> tuple[np.ndarray, int]:
+    """Greedy column colouring, largest columns first: columns of one colour
+    share no row. Returns (colour per column, number of colours)."""
+    n = J.shape[1]
+    colour = -np.ones(n, np.int64)
+    order = np.argsort(-J.sum(axis=0), kind="stable")
+    for j in order:
+        used = {colour[k] for k in range(n) if colour[k] >= 0 and np.any(J[:, k] & J[:, j])}
+        c = 0
+        while c in used:
+            c += 1
+        colour[j] = c
+    return colour, int(colour.max()) + 1
+
+
+@njit(types.void(RHS, _A2, _A1, _A1, _A2, _A2, _A1, types.int64, types.boolean[:, ::1]), **_JIT)
+def _probe(rhs, Y, sc, tt, P, ex, aux, n_rhs_out, J):
+    n = Y.shape[1]
+    f0 = np.empty(n)
+    f1 = np.empty(n)
+    out = np.empty(n_rhs_out)
+    y = np.empty(n)
+    for k in range(Y.shape[0]):
+        p = P[k % P.shape[0]]
+        for i in range(n):
+            y[i] = Y[k, i]
+        rhs(tt[k], y, p, ex, aux, f0, out)
+        for j in range(n):
+            yj = y[j]
+            for rel in (1e-7, -1e-4):
+                y[j] = yj + rel * max(abs(yj), sc[j])
+                rhs(tt[k], y, p, ex, aux, f1, out)
+                for i in range(n):
+                    if f1[i] != f0[i] and not (math.isnan(f1[i]) and math.isnan(f0[i])):
+                        J[i, j] = True
+            y[j] = yj
+
+
+def probe_sparsity(rhs, Y: np.ndarray, scales: np.ndarray, times: np.ndarray, P: np.ndarray, ex: np.ndarray,
+                   aux: np.ndarray, n_rhs_out: int) -> np.ndarray:
+    """Sparsity pattern found by perturbing every state of the compiled RHS
+    (by 1e-7 and -1e-4 of max(|y_j|, scale_j)) at the sample states Y[k]
+    (times[k], parameters P[k mod len(P)]): entry (i, j) is set when dy_i
+    changed. The diagonal is always included."""
+    Y = np.ascontiguousarray(Y, float)
+    J = np.zeros((Y.shape[1], Y.shape[1]), bool)
+    _probe(rhs, Y, np.ascontiguousarray(scales, float), np.ascontiguousarray(times, float), np.ascontiguousarray(np.atleast_2d(P), float),
+           np.ascontiguousarray(ex, float), np.ascontiguousarray(aux, float), int(n_rhs_out), J)
+    J |= np.eye(len(J), dtype=bool)
+    return J
 
 
 def _ctrl(h0):
     return np.array([h0, h0, 1.0, 1.0, 0.0])
 
 
-def integrate(p, ex, pq, cfg, y0, t_out, *, rtol=1e-4, atol=None, h0=1e-6, h_max=1e-3,
-              max_steps=2_000_000, max_wall_s=None, chunk_s=0.05, channels=None):
-    """Integrate one parameter set from t_out[0] over t_out (uniform output
-    grid). Returns (outputs[n_t, n_channels], final state, RunStats). A run
-    that hits a cap returns what it reached (remaining rows NaN)."""
-    from .model.params import state_scales
-
-    sc = state_scales(cfg)
-    col = _colouring(cfg)
-    z = np.asarray(y0, float) / sc
+def _prepare(sc, sparsity, n, atol, rtol, channels, n_rhs_out):
+    sc = np.ascontiguousarray(sc, float)
+    if sc.shape != (n,):
+        raise ValueError(f"scales must have one entry per state ({n}), got shape {sc.shape}")
+    sp = Sparsity.dense(n) if sparsity is None else sparsity
     atol = rtol if atol is None else atol
-    channels = np.arange(N_OUT) if channels is None else np.asarray(channels, np.int64)
+    channels = np.arange(n_rhs_out) if channels is None else np.asarray(channels, np.int64)
+    return sc, sp, float(atol), np.ascontiguousarray(channels, np.int64)
+
+
+def integrate(rhs, p, ex, aux, y0, t_out, *, scales=None, n_rhs_out=1, sparsity=None, rtol=1e-4, atol=None,
+              h0=1e-6, h_max=1e-3, max_steps=2_000_000, max_wall_s=None, chunk_s=0.05, channels=None,
+              fixed_h=0.0):
+    """Integrate ``rhs`` (compiled with :func:`rhs_signature`) for parameters
+    p from y0 at t_out[0] over the output grid t_out. ``scales`` (typical
+    state magnitudes; default 1) define the error norm; ``sparsity`` (a
+    :class:`Sparsity`; default dense) the finite-difference Jacobian;
+    ``n_rhs_out`` the length of the RHS's ``out`` vector. Returns (outputs[n_t,
+    n_channels], final state, RunStats); a run that hits a cap returns what it
+    reached (remaining rows NaN)."""
+    y0 = np.asarray(y0, float)
+    n = len(y0)
+    sc, sp, atol, channels = _prepare(np.ones(n) if scales is None else scales, sparsity, n, atol, rtol, channels,
+                                      n_rhs_out)
+    z = np.ascontiguousarray(y0 / sc)
+    t_out = np.ascontiguousarray(t_out, float)
     out = np.full((len(t_out), len(channels)), np.nan)
     ctrl = _ctrl(h0)
     stats = np.zeros(5, np.int64)
-    mc, md, mq = pq
+    p = np.ascontiguousarray(p, float)
+    ex = np.ascontiguousarray(ex, float)
+    aux = np.ascontiguousarray(aux, float)
     t = float(t_out[0])
     i_out = 0
     status = OK
@@ -358,8 +524,9 @@ def integrate(p, ex, pq, cfg, y0, t_out, *, rtol=1e-4, atol=None, h0=1e-6, h_max
     t_final = float(t_out[-1])
     step = chunk_s if max_wall_s is not None else (t_final - t)
     while t < t_final:
-        status, t, i_out = rodas4(z, t, t_final, t + step, p, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out,
-                                  i_out, out, channels, ctrl, stats, max_steps, *col)
+        st, t, io = rodas4(rhs, z, t, t_final, t + step, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out,
+                           channels, ctrl, stats, max_steps, *sp.args(), n_rhs_out, float(fixed_h))
+        status, i_out = int(st), int(io)
         if status != OK:
             break
         if max_wall_s is not None and time.perf_counter() - t0w > max_wall_s:
@@ -371,40 +538,54 @@ def integrate(p, ex, pq, cfg, y0, t_out, *, rtol=1e-4, atol=None, h0=1e-6, h_max
     return out, z * sc, rs
 
 
-def integrate_batch(P, ex, pq, cfg, Y0, t_out, *, rtol=1e-4, atol=None, h0=1e-6, h_max=1e-3,
-                    max_steps=2_000_000, max_wall_s=None, chunk_s=0.05, channels=None, progress=None):
+def integrate_batch(rhs, P, ex, aux, Y0, t_out, *, scales=None, n_rhs_out=1, sparsity=None, rtol=1e-4,
+                    atol=None, h0=1e-6, h_max=1e-3, max_steps=2_000_000, max_wall_s=None, chunk_s=0.05,
+                    channels=None, progress=None, skip=None):
     """Integrate many parameter sets (rows of P, initial states rows of Y0)
-    in parallel threads. Returns (outputs[m, n_t, n_channels], statuses[m],
-    stats[m, 5]). Members that fail keep NaN where they did not reach."""
-    from .model.params import state_scales
-
+    in parallel threads. ``skip`` (bool per member) marks members not to run
+    (status INVALID). Returns (outputs[m, n_t, n_channels], statuses[m],
+    stats[m, 5]). Members that fail keep NaN where they did not reach; the
+    others are unaffected."""
     P = np.ascontiguousarray(P, float)
     m = P.shape[0]
-    sc = state_scales(cfg)
-    col = _colouring(cfg)
-    Z = np.ascontiguousarray(np.asarray(Y0, float) / sc)
-    atol = rtol if atol is None else atol
-    channels = np.arange(N_OUT) if channels is None else np.asarray(channels, np.int64)
+    Y0 = np.asarray(Y0, float)
+    n = Y0.shape[1]
+    sc, sp, atol, channels = _prepare(np.ones(n) if scales is None else scales, sparsity, n, atol, rtol, channels,
+                                      n_rhs_out)
+    Z = np.ascontiguousarray(Y0 / sc)
+    t_out = np.ascontiguousarray(t_out, float)
     OUT = np.full((m, len(t_out), len(channels)), np.nan)
     CTRL = np.tile(_ctrl(h0), (m, 1))
     STATS = np.zeros((m, 5), np.int64)
     STATUS = np.full(m, -1, np.int64)
+    if skip is not None:
+        STATUS[np.asarray(skip, bool)] = INVALID
     T = np.full(m, float(t_out[0]))
     I_OUT = np.zeros(m, np.int64)
-    mc, md, mq = pq
+    ex = np.ascontiguousarray(ex, float)
+    aux = np.ascontiguousarray(aux, float)
     t_final = float(t_out[-1])
     t = float(t_out[0])
     t0w = time.perf_counter()
     step = chunk_s if (max_wall_s is not None or progress is not None) else (t_final - t)
-    while t < t_final:
+    while np.any(STATUS < 0):
         t_pause = t + step
-        _batch_chunk(Z, T, t_final, t_pause, P, ex, mc, md, mq, cfg, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
-                     channels, CTRL, STATS, STATUS, max_steps, *col)
-        t = min(T[STATUS < 0].min(), t_final) if np.any(STATUS < 0) else t_final
+        T_before = T.copy()
+        _batch_chunk(rhs, Z, T, t_final, t_pause, P, ex, aux, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
+                     channels, CTRL, STATS, STATUS, max_steps, *sp.args(), n_rhs_out)
+        running = STATUS < 0
+        done = running & (T >= t_final)
+        STATUS[done] = OK
+        stalled = (STATUS < 0) & ~(T > T_before)  # a member whose time did not advance: never loop on it
+        STATUS[stalled] = STALLED
+        if not np.any(STATUS < 0):
+            break
+        t = min(float(T[STATUS < 0].min()), t_final)
         if progress is not None:
             progress(t, t_final)
-        if max_wall_s is not None and time.perf_counter() - t0w > max_wall_s and t < t_final:
+        if max_wall_s is not None and time.perf_counter() - t0w > max_wall_s:
             STATUS[STATUS < 0] = WALL_TIME
             break
-    STATUS[STATUS < 0] = OK
+    if progress is not None:
+        progress(t_final, t_final)
     return OUT, STATUS, STATS

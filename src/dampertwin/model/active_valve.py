@@ -4,10 +4,33 @@ clamped to the grid, odd in dp (THESIS-ERRATA 30)."""
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
+from .declarations import Parameter
 
-@njit(cache=True)
+PARAMETERS = (Parameter("CURRENT", "A", None, "active-valve current (test condition)"),)
+
+
+def pack_map(currents, dps, flow) -> np.ndarray:
+    """The P/Q map as the model's auxiliary data vector:
+    [n_i, n_j, currents (n_i), dps (n_j), flow (n_i x n_j, row-major)]."""
+    currents, dps, flow = (np.asarray(a, float) for a in (currents, dps, flow))
+    return np.concatenate([[len(currents), len(dps)], currents, dps, flow.ravel()])
+
+
+@njit(cache=True, error_model="numpy")
+def map_flow(current, dp, aux):
+    """active_valve_flow on the map packed by :func:`pack_map`."""
+    ni = int(aux[0])
+    nj = int(aux[1])
+    currents = aux[2:2 + ni]
+    dps = aux[2 + ni:2 + ni + nj]
+    flow = aux[2 + ni + nj:2 + ni + nj + ni * nj].reshape((ni, nj))
+    return active_valve_flow(current, dp, currents, dps, flow)
+
+
+@njit(cache=True, error_model="numpy")
 def _bracket(grid, v):
     """Index i and weight w with v = (1-w) grid[i] + w grid[i+1], clamped."""
     n = grid.shape[0]
@@ -26,7 +49,7 @@ def _bracket(grid, v):
     return lo, (v - grid[lo]) / (grid[lo + 1] - grid[lo])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def active_valve_flow(current, dp, currents, dps, flow):
     """Flow [m^3/s] from the third tube to the reserve at pressure drop dp [Pa]
     and current [A]; flow[i, j] is the map at currents[i], dps[j]."""

@@ -10,6 +10,28 @@ import math
 
 from numba import njit
 
+from .declarations import Parameter, State
+
+PARAMETERS = (
+    Parameter("A_R", "m^2", lambda d: math.pi * (d["geometry.D_PT"] ** 2 - d["geometry.D_R"] ** 2) / 4.0,
+              "rebound (annulus) area, eq. 4.2"),
+    Parameter("A_B", "m^2", lambda d: math.pi * d["geometry.D_PT"] ** 2 / 4.0, "piston (bore) area, eq. 4.3"),
+    Parameter("L_R0", "m", "geometry.l_r0", "rebound chamber length at zero stroke"),
+    Parameter("L_C0", "m", "geometry.l_c0", "compression chamber length at zero stroke"),
+    Parameter("V_B", "m^3", "geometry.V_b", "third-tube chamber volume"),
+    Parameter("P_ATM", "Pa", "constants.P_atm", "atmospheric pressure"),
+    Parameter("P0", "Pa", "oil.P_0", "precharge pressure (absolute)"),
+    Parameter("V_G0", "m^3", "constants.V_gas0", "reserve gas volume at the precharge"),
+    Parameter("E_CAV", "-", "effects.cavitation", "switch: cavitation floor of the chamber modulus"),
+)
+
+STATES = (
+    State("P_r", "Pa", 1e5, lambda q: q["P0"], "rebound chamber pressure, eq. 4.10"),
+    State("P_c", "Pa", 1e5, lambda q: q["P0"], "compression chamber pressure, eq. 4.11"),
+    State("P_b", "Pa", 1e5, lambda q: q["P0"], "third-tube pressure, eq. 4.12"),
+    State("V_g", "m^3", 1e-5, lambda q: q["V_G0"], "reserve gas volume (THESIS-ERRATA 8)"),
+)
+
 # Cavitation: the effective modulus fades to CAV_MIN of its value as the
 # pressure falls to the vapour pressure over CAV_BAND, and decays
 # exponentially (rate CAV_DECAY per band) below it, so a chamber is not pulled
@@ -19,13 +41,13 @@ CAV_MIN = 1e-3
 CAV_DECAY = 5.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def chamber_volumes(s, A_r, A_b, l_r0, l_c0):
     """Rebound and compression volumes, eq. 4.5-4.6 (A_c read as A_b, errata 4)."""
     return A_r * (l_r0 - s), A_b * (l_c0 + s)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cavitation_factor(P, P_vap):
     """Smooth factor in [CAV_MIN, 1] scaling the modulus near P_vap."""
     u = (P - P_vap) / CAV_BAND
@@ -36,13 +58,13 @@ def cavitation_factor(P, P_vap):
     return CAV_MIN + (1.0 - CAV_MIN) * u * u * (3.0 - 2.0 * u)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def pressure_rate(K, V, dV, Q_out):
     """dP/dt = -K/V (dV/dt + Q_out), eq. 4.9-4.12, Q_out the net outflow."""
     return -K / V * (dV + Q_out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rod_force(P_r, P_c, A_r, A_b, P_atm, F_mu):
     """Force on the rod, eq. 4.1 from a free-body diagram (THESIS-ERRATA 1, 2):
     (P_r - P_atm) A_r - (P_c - P_atm) A_b + F_mu, A_r the annulus. Positive

@@ -1,74 +1,92 @@
-"""Index layout of the compiled model's parameter vector and state vectors.
+"""The assembled model's vectors, derived from the submodels' declarations.
 
-The compiled functions read these module constants at compile time: after
-editing this file, clear numba's cache (``find src -name '*.nbi' -delete``)
-so cached functions in other modules recompile.
+Nothing here is written by hand per state or parameter: ``P`` numbers the
+parameters that every submodel declares (plus one block per valve), ``S``,
+``B`` and ``T`` number the states of the damper / module, flow-bench and
+top-mount configurations in the order the submodels are listed below, and
+``O`` the output channels. They are IntEnums, so the compiled functions see
+plain integer constants.
 """
 
-from .valves import V_SIZE
+from __future__ import annotations
 
-_names = """
-A_R A_B L_R0 L_C0 V_B M_ROD
-K_OIL RHO NU P_SAT P_VAP CHI GAMMA P0 TEMP
-PSI_PT PSI_TT RATIO_TT
-P_ATM P_REF T_REF RHO_GAS V_G0 A_BP CQ_BP P_TR ZETA K_C ZETA_C DELTA_C G_LEAK
-FR_FC FR_FS FR_KB FR_S2 FR_CCOMP FR_VD FR_AS FR_ALPHAS
-TM_R TM_P0 TM_P1 TM_P2 TM_Q0 TM_Q1 TM_Q2 TM_K0 TM_K1 TM_K2 TM_C0 TM_C1 TM_C2 TM_YU TM_WU
-TM_FLD0 TM_FLD1 TM_FLD2 TM_FLD3 TM_FLD4
-CURRENT
-E_GAS E_WALL E_CAV E_STICTION E_SHIM_FRICTION E_JET E_CQ E_SLOT E_ROD_FRICTION E_TM_DYNAMICS E_LEAK
-BENCH_V BENCH_P_DOWN BENCH_VALVE
-EX_T0 EX_DT
-""".split()
-for _i, _n in enumerate(_names):
-    globals()["P_" + _n] = _i
-P_VALVES = len(_names)  # four valve blocks follow, V_SIZE each
-N_FLD = 5
-N_PARAMS = P_VALVES + 4 * V_SIZE
-PARAM_NAMES = tuple(_names) + tuple(f"valve{k}.{j}" for k in range(4) for j in range(V_SIZE))
+import numpy as np
 
-# Valve order (block k at P_VALVES + k*V_SIZE)
-VALVE_NAMES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
+from . import active_valve, bench, chambers, fluid, inputs, piston_leakage, rod, rod_friction, top_mount, valves
+from .declarations import Parameter, State, index_enum
+from .valves import SHIM_VALVES, V_SIZE, VALVE_NAMES, valve_states
 
-# ---- configurations
-CFG_VALVE, CFG_DAMPER, CFG_MODULE = 0, 1, 2
-CFG_SOLVER_TEST = 3  # analytic test problem for the integrator (3 states)
-CFG_TOPMOUNT = 4  # the top mount alone, deflection X(t) prescribed (3 states)
+# ---- parameters: every submodel's declarations, then four valve blocks
+SUBMODELS = (chambers, fluid, valves, piston_leakage, rod_friction, top_mount, rod, active_valve, bench, inputs)
+PARAMETERS: tuple[Parameter, ...] = tuple(p for m in SUBMODELS for p in m.PARAMETERS)
+P = index_enum("P", [p.name for p in PARAMETERS] + ["VALVES"], __name__)
+N_PARAMS = len(PARAMETERS) + 4 * V_SIZE
+PARAM_NAMES = tuple(p.name for p in PARAMETERS) + tuple(
+    f"{v}.{q.name}" for v in VALVE_NAMES for q in valves.VALVE_PARAMETERS)
+
+# ---- configurations and their states
+CFG_VALVE, CFG_DAMPER, CFG_MODULE, CFG_TOPMOUNT = 0, 1, 2, 4
 CONFIGURATIONS = {"valve": CFG_VALVE, "damper": CFG_DAMPER, "module": CFG_MODULE, "topmount": CFG_TOPMOUNT}
 
-# ---- state layout, damper / module configuration
-S_PR, S_PC, S_PB, S_VG = 0, 1, 2, 3
-S_X0 = 4  # valve k: lift at S_X0 + 2k, velocity at S_X0 + 2k + 1
-S_DAHL_PR, S_DAHL_BC = 12, 13  # Dahl force of the two shim stacks
-S_Z = 14  # LuGre bristle deflection
-N_DAMPER = 15
-S_XROD, S_VROD, S_TMX, S_TMY, S_TMW = 15, 16, 17, 18, 19
-N_MODULE = 20
-
-# ---- state layout, flow-bench (valve) configuration
-B_P, B_X, B_V, B_F = 0, 1, 2, 3
-N_VALVE = 4
-
-# ---- state layout, top mount alone
-T_X, T_Y, T_W = 0, 1, 2
-
-N_STATES = {CFG_VALVE: N_VALVE, CFG_DAMPER: N_DAMPER, CFG_MODULE: N_MODULE, CFG_SOLVER_TEST: 3, CFG_TOPMOUNT: 3}
+_DAMPER_STATES: tuple[State, ...] = (
+    chambers.STATES
+    + tuple(s for k, v in enumerate(VALVE_NAMES) for s in valve_states(k, v))
+    + rod_friction.STATES
+)
+_MODULE_STATES = _DAMPER_STATES + rod.STATES + top_mount.STATES
+STATES: dict[int, tuple[State, ...]] = {
+    CFG_VALVE: bench.STATES, CFG_DAMPER: _DAMPER_STATES, CFG_MODULE: _MODULE_STATES, CFG_TOPMOUNT: top_mount.STATES,
+}
+S = index_enum("S", [s.name for s in _MODULE_STATES], __name__)  # damper = the first N_DAMPER of these
+B = index_enum("B", [s.name for s in bench.STATES], __name__)
+T = index_enum("T", [s.name for s in top_mount.STATES], __name__)
+N_DAMPER = len(_DAMPER_STATES)
+N_MODULE = len(_MODULE_STATES)
+N_STATES = {cfg: len(st) for cfg, st in STATES.items()}
+assert all(f"F_dahl_{v}" in S.__members__ for v in SHIM_VALVES)
 
 # ---- output channels computed at every output time
 OUTPUTS = (
-    ("displacement [m]", "u"), ("velocity [m/s]", "v"), ("stroke [m]", "s"),
-    ("rod force [N]", "F_d"), ("top mount force [N]", "F_tm"), ("rod acceleration [m/s^2]", "a_rod"),
-    ("friction force [N]", "F_mu"),
-    ("p rebound [Pa]", "P_r"), ("p compression [Pa]", "P_c"), ("p third tube [Pa]", "P_b"),
-    ("p reserve [Pa]", "P_res"),
-    ("lift piston_rebound [m]", "x0"), ("lift piston_intake [m]", "x1"),
-    ("lift base_compression [m]", "x2"), ("lift base_intake [m]", "x3"),
-    ("flow piston_rebound [m^3/s]", "Q0"), ("flow piston_intake [m^3/s]", "Q1"),
-    ("flow base_compression [m^3/s]", "Q2"), ("flow base_intake [m^3/s]", "Q3"),
-    ("flow bypass [m^3/s]", "Q_bp"), ("flow active valve [m^3/s]", "Q_a"),
-    ("storage rebound [m^3/s]", "St_r"), ("storage compression [m^3/s]", "St_c"),
-    ("storage third tube [m^3/s]", "St_b"), ("gas volume rate [m^3/s]", "dVg"),
+    ("displacement [m]", "U"), ("velocity [m/s]", "V"), ("stroke [m]", "S"),
+    ("rod force [N]", "F_D"), ("top mount force [N]", "F_TM"), ("rod acceleration [m/s^2]", "A_ROD"),
+    ("friction force [N]", "F_MU"),
+    ("p rebound [Pa]", "P_R"), ("p compression [Pa]", "P_C"), ("p third tube [Pa]", "P_B"),
+    ("p reserve [Pa]", "P_RES"),
+    *((f"lift {v} [m]", f"X{k}") for k, v in enumerate(VALVE_NAMES)),
+    *((f"flow {v} [m^3/s]", f"Q{k}") for k, v in enumerate(VALVE_NAMES)),
+    ("flow bypass [m^3/s]", "Q_BP"), ("flow active valve [m^3/s]", "Q_A"),
+    ("storage rebound [m^3/s]", "ST_R"), ("storage compression [m^3/s]", "ST_C"),
+    ("storage third tube [m^3/s]", "ST_B"), ("gas volume rate [m^3/s]", "DVG"),
 )
-for _i, (_c, _n) in enumerate(OUTPUTS):
-    globals()["O_" + _n.upper()] = _i
+O = index_enum("O", [n for _, n in OUTPUTS], __name__)
 N_OUT = len(OUTPUTS)
+
+
+class ParamView:
+    """Read a packed parameter vector by name: ``q["K_OIL"]``, or a valve
+    block ``q.block("VALVES", k, V_SIZE)`` (for initial-state functions)."""
+
+    def __init__(self, p: np.ndarray):
+        self.p = p
+
+    def __getitem__(self, name: str) -> float:
+        return float(self.p[P[name]])
+
+    def block(self, base: str, k: int, size: int) -> np.ndarray:
+        o = int(P[base]) + k * size
+        return self.p[o:o + size]
+
+
+def state_scales(cfg: int) -> np.ndarray:
+    """Declared typical magnitudes of the configuration's states [SI]."""
+    return np.array([s.scale for s in STATES[cfg]], float)
+
+
+def initial_state(p: np.ndarray, cfg: int) -> np.ndarray:
+    """Declared rest state of the configuration for parameters ``p``."""
+    q = ParamView(p)
+    return np.array([s.initial(q) if callable(s.initial) else float(s.initial) for s in STATES[cfg]], float)
+
+
+def state_names(cfg: int) -> tuple[str, ...]:
+    return tuple(s.name for s in STATES[cfg])

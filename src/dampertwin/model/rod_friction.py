@@ -10,14 +10,30 @@ import math
 
 from numba import njit
 
+from .declarations import Parameter, State
 
-@njit(cache=True)
+PARAMETERS = (
+    Parameter("FR_FC", "N", "rod_friction.F_c", "Coulomb friction level, eq. 4.41"),
+    Parameter("FR_FS", "N", "rod_friction.F_s", "static (Stribeck) friction level, eq. 4.41"),
+    Parameter("FR_KB", "N/m", "rod_friction.k_b", "bristle stiffness, eq. 4.38"),
+    Parameter("FR_S2", "N s/m", "constants.s2", "viscous friction, eq. 4.38"),
+    Parameter("FR_CCOMP", "N s/m", "constants.c_comp", "bristle damping, eq. 4.39"),
+    Parameter("FR_VD", "m/s", "constants.vd", "velocity scale of the bristle damping, eq. 4.39"),
+    Parameter("FR_AS", "m/s", "constants.a_s", "Stribeck velocity, eq. 4.41"),
+    Parameter("FR_ALPHAS", "-", "constants.alpha_s", "Stribeck exponent, eq. 4.41"),
+    Parameter("E_ROD_FRICTION", "-", "effects.rod_friction", "switch: LuGre rod friction"),
+)
+
+STATES = (State("z", "m", 1e-5, 0.0, "LuGre bristle deflection, eq. 4.40"),)
+
+
+@njit(cache=True, error_model="numpy")
 def stribeck(dv, F_c, F_s, a_s, alpha_s):
     """g(dv) = F_c + (F_s - F_c) exp(-(|dv|/a_s)^alpha_s), eq. 4.41 (errata 34)."""
     return F_c + (F_s - F_c) * math.exp(-((abs(dv) / a_s) ** alpha_s))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lugre(z, dv, k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s):
     """Bristle rate dz/dt (eq. 4.40) and friction force (eq. 4.38, 4.39).
     Returns (dz/dt [m/s], F [N])."""

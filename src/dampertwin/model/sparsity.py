@@ -1,69 +1,46 @@
-"""Jacobian sparsity of the assembled model and a column colouring, so the
-compiled finite-difference Jacobian needs one RHS evaluation per colour
-instead of one per state (Curtis-Powell-Reid)."""
+"""Jacobian sparsity of an assembled configuration, found by probing its
+compiled right-hand side (solver.probe_sparsity) at random states around the
+declared rest state, spread over the declared state scales."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import layout as L
+from ..solver import Sparsity, probe_sparsity
+from .layout import N_OUT, initial_state, state_scales
+from .params import EFFECT_INDEX
+
+N_PROBES = 300  # random states per parameter set
+PROBE_SPREAD = (-1.0, 2.0)  # log10 of the state perturbation in units of the declared scale
+PROBE_SEED = 20240917
 
 
-def pattern(cfg: int) -> np.ndarray:
-    """Boolean matrix J[i, j]: may d(dy_i)/d(y_j) be non-zero (a superset)."""
-    n = L.N_STATES[cfg]
-    if cfg in (L.CFG_VALVE, L.CFG_SOLVER_TEST, L.CFG_TOPMOUNT):
-        return np.ones((n, n), bool)
-    J = np.zeros((n, n), bool)
-    PR, PC, PB, VG = L.S_PR, L.S_PC, L.S_PB, L.S_VG
-    x = [L.S_X0 + 2 * k for k in range(4)]
-    v = [L.S_X0 + 2 * k + 1 for k in range(4)]
-    dahl = {0: L.S_DAHL_PR, 2: L.S_DAHL_BC}
-    chambers = {0: (PR, PC), 1: (PC, PR), 2: (PC, VG), 3: (VG, PC)}  # valve k: upstream, downstream
-    module = cfg == L.CFG_MODULE
-    rod = [L.S_XROD, L.S_VROD] if module else []
+def probe_states(p: np.ndarray, cfg: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    """n random states: rest state + scale x N(0, 1) x 10^U(PROBE_SPREAD)."""
+    y0 = initial_state(p, cfg)
+    sc = state_scales(cfg)
+    mag = 10.0 ** rng.uniform(*PROBE_SPREAD, size=(n, len(y0)))
+    return y0 + sc * mag * rng.standard_normal((n, len(y0)))
 
-    def dep(row, *cols):
-        for c in cols:
-            J[row, c] = True
 
-    dep(PR, PR, PC, PB, x[0], x[1], *rod)  # eq. 4.10
-    dep(PC, PR, PC, VG, *x, *rod)  # eq. 4.11 (+ wall vs reserve)
-    dep(PB, PR, PB, VG)  # eq. 4.12
-    dep(VG, PC, PB, VG, x[2], x[3])  # reserve gas
-    for k in range(4):
-        dep(x[k], v[k])
-        dep(v[k], x[k], v[k], *chambers[k])  # eq. 4.20
-        if k in dahl:
-            dep(v[k], dahl[k])
-            dep(dahl[k], v[k], dahl[k])  # eq. 4.26
-    dep(L.S_Z, L.S_Z, *rod)  # eq. 4.40
-    if module:
-        tm = [L.S_TMX, L.S_TMY, L.S_TMW]
-        dep(L.S_XROD, L.S_VROD)
-        dep(L.S_VROD, PR, PC, L.S_Z, L.S_XROD, L.S_VROD, *tm)  # eq. 4.4
-        dep(L.S_TMX, L.S_VROD, L.S_TMX)  # eq. 4.32
-        dep(L.S_TMY, L.S_VROD, L.S_TMX, L.S_TMY)  # eq. 4.33
-        dep(L.S_TMW, L.S_VROD, L.S_TMX, L.S_TMW)  # eq. 4.34
+def pattern(rhs, cfg: int, P: np.ndarray, ex: np.ndarray, aux: np.ndarray, t_span: tuple[float, float],
+            n_probes: int = N_PROBES, seed: int = PROBE_SEED) -> np.ndarray:
+    """Union of the probed patterns for the parameter sets P (rows), each
+    also with every effect switched on (a superset for any switch setting)."""
+    P = np.atleast_2d(np.asarray(P, float))
+    rows = [P, P.copy()]
+    rows[1][:, list(EFFECT_INDEX.values())] = 1.0
+    rng = np.random.default_rng(seed)
+    J = None
+    for Pk in rows:
+        for p in Pk[: max(1, min(len(Pk), 8))]:
+            Y = probe_states(p, cfg, n_probes, rng)
+            tt = rng.uniform(*t_span, size=n_probes)
+            Jp = probe_sparsity(rhs, Y, state_scales(cfg), tt, p[None, :], ex, aux, N_OUT)
+            J = Jp if J is None else J | Jp
     return J
 
 
-def colouring(J: np.ndarray):
-    """Greedy column colouring: columns of one colour share no row.
-    Returns (colour per column [n], number of colours, CSC col_ptr, row_idx)."""
-    n = J.shape[1]
-    colour = -np.ones(n, np.int64)
-    order = np.argsort(-J.sum(axis=0), kind="stable")
-    for j in order:
-        used = {colour[k] for k in range(n) if colour[k] >= 0 and np.any(J[:, k] & J[:, j])}
-        c = 0
-        while c in used:
-            c += 1
-        colour[j] = c
-    col_ptr = np.zeros(n + 1, np.int64)
-    rows = []
-    for j in range(n):
-        r = np.flatnonzero(J[:, j])
-        rows.extend(r)
-        col_ptr[j + 1] = col_ptr[j] + len(r)
-    return colour, int(colour.max()) + 1, col_ptr, np.asarray(rows, np.int64)
+def sparsity(rhs, cfg: int, P: np.ndarray, ex: np.ndarray, aux: np.ndarray, t_span: tuple[float, float]) -> Sparsity:
+    """Probed pattern and its colouring for the coloured FD Jacobian."""
+    return Sparsity.from_pattern(pattern(rhs, cfg, P, ex, aux, t_span))

@@ -10,8 +10,39 @@ from __future__ import annotations
 
 from numba import njit
 
+from .declarations import Parameter, State
 
-@njit(cache=True)
+N_FLD = 5  # coefficients of the static load-deflection polynomial
+
+
+def _fld(k):
+    def get(d):
+        coef = d["top_mount.F_LD"]
+        if len(coef) > N_FLD:
+            raise ValueError(f"design {d.name!r}: top_mount.F_LD has {len(coef)} coefficients; at most {N_FLD} supported")
+        return coef[k] if k < len(coef) else 0.0
+    return get
+
+
+PARAMETERS = (
+    Parameter("TM_R", "1/s", "top_mount.R", "high-pass rate of x, eq. 4.32"),
+    *(Parameter(f"TM_{n.upper()}", u, f"top_mount.{n}", f"AutoBushFD parameter {n}, eq. 4.33-4.36")
+      for n, u in (("p0", "-"), ("p1", "-"), ("p2", "-"), ("q0", "-"), ("q1", "-"), ("q2", "-"),
+                   ("k0", "N/m"), ("k1", "N/m"), ("k2", "N/m"), ("c0", "N s/m"), ("c1", "N s/m"), ("c2", "N s/m"))),
+    Parameter("TM_YU", "m", "constants.y_unit", "unit of y in the power terms (errata 32)"),
+    Parameter("TM_WU", "m/s", "constants.w_unit", "unit of w' in the power terms (errata 32)"),
+    *(Parameter(f"TM_FLD{k}", f"N/m^{k + 1}", _fld(k), f"F_LD coefficient of X^{k + 1}") for k in range(N_FLD)),
+    Parameter("E_TM_DYNAMICS", "-", "effects.top_mount_dynamics", "switch: rubber dynamics (else static curve)"),
+)
+
+STATES = (
+    State("tm_x", "m", 1e-4, 0.0, "high-passed deflection, eq. 4.32"),
+    State("tm_y", "m", 1e-4, 0.0, "elastic internal state, eq. 4.33"),
+    State("tm_w", "m", 1e-4, 0.0, "damping internal state, eq. 4.34"),
+)
+
+
+@njit(cache=True, error_model="numpy")
 def static_force(X, coef):
     """Static load-deflection polynomial F_LD(X) = sum_k coef[k-1] X^k, k >= 1 [N]."""
     f = 0.0
@@ -22,7 +53,7 @@ def static_force(X, coef):
     return f
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def top_mount_rates(Xdot, x, y, w, R, k0, k1, k2, c0, c1, c2):
     """State rates of eq. 4.32-4.34. Returns (x', y', w')."""
     xd = Xdot - R * x  # eq. 4.32
@@ -31,7 +62,7 @@ def top_mount_rates(Xdot, x, y, w, R, k0, k1, k2, c0, c1, c2):
     return xd, yd, wd
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, coef, dynamics):
     """Bushing force eq. 4.35-4.37, F = K y + C w' + F_LD(X) [N]; with
     ``dynamics`` false only the static curve."""

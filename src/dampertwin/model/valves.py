@@ -13,14 +13,92 @@ import math
 
 from numba import njit
 
-# ---- valve parameter block layout (offsets inside a valve's block)
-V_DD, V_DI, V_DH, V_CQ, V_LAM, V_AB, V_CQB, V_AS, V_CQS = 0, 1, 2, 3, 4, 5, 6, 7, 8
-V_M, V_C, V_SIG, V_FC, V_ALPHA, V_PRE, V_A, V_B, V_CC, V_D = 9, 10, 11, 12, 13, 14, 15, 16, 17, 18
-V_XV0, V_XMAX, V_SHIM = 19, 20, 21
-V_SIZE = 22
+from .declarations import Parameter, State, index_enum
+
+VALVE_NAMES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
+SHIM_VALVES = ("piston_rebound", "base_compression")  # shim stacks: Dahl friction state
 
 
-@njit(cache=True)
+def _g(key, default=None):
+    """Value of ``key`` in the valve's design group (``default`` when that
+    valve type has no such entry, e.g. no bleed on an intake disc)."""
+    if default is None:
+        return lambda d, valve: d.group(valve)[key]
+    return lambda d, valve: d.group(valve).get(key, default)
+
+
+# One block of these per valve in the parameter vector (offsets V.*).
+VALVE_PARAMETERS = (
+    Parameter("DD", "m", _g("D_d"), "disc (outer) diameter"),
+    Parameter("DI", "m", _g("D_i"), "inner (clamp / seat) diameter"),
+    Parameter("DH", "m", _g("D_h", 0.0), "hole diameter of an intake disc, eq. 4.22"),
+    Parameter("CQ", "-", _g("Cq_max"), "discharge coefficient (max of eq. 4.30)"),
+    Parameter("LAM", "-", _g("lambda_crit"), "critical flow number, eq. 4.30"),
+    Parameter("AB", "m^2", _g("A_bleed", 0.0), "bleed area"),
+    Parameter("CQB", "-", _g("Cq_bleed", 0.0), "bleed discharge coefficient"),
+    Parameter("AS", "m^2", _g("A_slot"), "slot (series restriction) area"),
+    Parameter("CQS", "-", _g("Cq_slot"), "slot discharge coefficient"),
+    Parameter("M", "kg", _g("m_v"), "moving mass"),
+    Parameter("C", "N s/m", _g("c_v"), "viscous damping"),
+    Parameter("SIG", "N/m", _g("sigma0", 0.0), "Dahl stiffness, eq. 4.26"),
+    Parameter("FC", "N", _g("F_c", 1.0), "Dahl friction level, eq. 4.26"),
+    Parameter("ALPHA", "-", _g("alpha", 1.0), "Dahl exponent, eq. 4.26"),
+    Parameter("PRE", "N", _g("F_preload"), "preload F_k(0) (THESIS-ERRATA 17)"),
+    Parameter("A", "N", _g("a"), "spring coefficient a, eq. 4.19"),
+    Parameter("B", "1/m", _g("b"), "spring exponent b, eq. 4.19"),
+    Parameter("CC", "N", _g("c"), "spring coefficient c, eq. 4.19"),
+    Parameter("D", "1/m", _g("d"), "spring exponent d, eq. 4.19"),
+    Parameter("XV0", "m", _g("x_v0", 1.0), "squeeze-film gap at the seat, eq. 4.25"),
+    Parameter("XMAX", "m", lambda d, valve: d.constant("x_max_" + valve), "lift stop"),
+    Parameter("SHIM", "-", lambda d, valve: 1.0 if "A_bleed" in d.group(valve) else 0.0,
+              "1 for a shim stack (eq. 4.21, 4.27), 0 for an intake disc (eq. 4.22, 4.28)"),
+)
+V = index_enum("V", [p.name for p in VALVE_PARAMETERS], __name__)
+V_SIZE = len(VALVE_PARAMETERS)
+
+# Parameters shared by all valves and orifices.
+PARAMETERS = (
+    Parameter("P_TR", "Pa", "constants.p_transition", "laminar-turbulent transition of the orifice law (errata 26)"),
+    Parameter("ZETA", "rad", "constants.zeta", "jet angle, eq. 4.24"),
+    Parameter("K_C", "N/m", "constants.k_contact", "seat / stop contact stiffness (errata 27)"),
+    Parameter("ZETA_C", "-", "constants.zeta_contact", "contact damping ratio"),
+    Parameter("DELTA_C", "m", "constants.delta_contact", "penetration over which contact damping ramps in"),
+    Parameter("A_BP", "m^2", "constants.A_bypass", "rebound -> third tube bypass area"),
+    Parameter("CQ_BP", "-", "constants.Cq_bypass", "bypass discharge coefficient"),
+    Parameter("E_STICTION", "-", "effects.valve_stiction", "switch: squeeze-film stiction, eq. 4.25"),
+    Parameter("E_SHIM_FRICTION", "-", "effects.shim_friction", "switch: Dahl friction of shim stacks, eq. 4.26"),
+    Parameter("E_JET", "-", "effects.jet_force", "switch: flow momentum force, eq. 4.24"),
+    Parameter("E_CQ", "-", "effects.flow_number_cq", "switch: Cq(lambda), eq. 4.30-4.31"),
+    Parameter("E_SLOT", "-", "effects.slot_restriction", "switch: slot in series (errata 25)"),
+)
+
+
+def valve_states(k: int, valve: str, base: str = "VALVES") -> tuple[State, ...]:
+    """States of valve ``valve`` (parameter block ``k`` after ``base``): lift
+    and velocity (eq. 4.20), and the Dahl force (eq. 4.26) of a shim stack."""
+    st = (State(f"x_{valve}", "m", 1e-4, lambda q: seated_lift(q.block(base, k, V_SIZE), q["K_C"]),
+                f"lift of {valve} (seated at rest)"),
+          State(f"v_{valve}", "m/s", 1.0, 0.0, f"velocity of {valve}"))
+    if valve in SHIM_VALVES:
+        st += (State(f"F_dahl_{valve}", "N", 1.0, 0.0, f"Dahl friction force of {valve}"),)
+    return st
+
+
+def seated_lift(block, k_c: float) -> float:
+    """Lift [m] where a valve rests on its seat with no pressure difference:
+    the seat contact balances the preloaded spring (x < 0)."""
+    x = -block[V.PRE] / k_c
+    for _ in range(50):  # Newton on k_c(-x) - F_k(x) = 0
+        r = -k_c * x - stiffness_force(x, block[V.PRE], block[V.A], block[V.B], block[V.CC], block[V.D])
+        dk = block[V.A] * block[V.B] * math.exp(block[V.B] * x) + block[V.CC] * block[V.D] * math.exp(block[V.D] * x)
+        step = r / (-k_c - dk)
+        x -= step
+        if abs(step) < 1e-16:
+            break
+    return x
+
+
+@njit(cache=True, error_model="numpy")
 def regularised_sqrt(dp, p_tr):
     """sign(dp) sqrt|dp| for |dp| >> p_tr, linear (laminar) below the
     transition pressure p_tr: dp / (dp^2 + p_tr^2)^(1/4) (THESIS-ERRATA 26).
@@ -28,13 +106,13 @@ def regularised_sqrt(dp, p_tr):
     return dp / (dp * dp + p_tr * p_tr) ** 0.25
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def orifice_flow(G, dp, rho, p_tr):
     """Orifice law eq. 4.29, Q = G sqrt(2 dp / rho), with G = Cq A [m^2]."""
     return G * math.sqrt(2.0 / rho) * regularised_sqrt(dp, p_tr)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def discharge_coefficient(cq_max, lam_crit, x, nu, dp, rho):
     """Cq(lambda), eq. 4.30-4.31, with D_hyd = 2x for the slit
     (THESIS-ERRATA 24), so Cq -> 0 as the valve closes."""
@@ -42,45 +120,45 @@ def discharge_coefficient(cq_max, lam_crit, x, nu, dp, rho):
     return cq_max * math.tanh(2.0 * lam / lam_crit)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def stiffness_force(x, F_pre, a, b, c, d):
     """Two-term exponential spring, eq. 4.19, with F_k(0) = F_preload
     (THESIS-ERRATA 17): F_pre + a(e^{bx} - 1) + c(e^{dx} - 1) [N]."""
     return F_pre + a * (math.exp(b * x) - 1.0) + c * (math.exp(d * x) - 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def shim_pressure_force(dp, D_d, D_i):
     """Net pressure force on a shim stack, eq. 4.21 with the back pressure
     subtracted (THESIS-ERRATA 19): pi/12 (D_d - D_i)(2 D_d + D_i) dp [N]."""
     return math.pi / 12.0 * (D_d - D_i) * (2.0 * D_d + D_i) * dp
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def intake_pressure_force(dp, D_d, D_h):
     """Pressure force on an intake disc, eq. 4.22 [N]."""
     return math.pi * dp / 4.0 * (D_d * D_d - D_h * D_h)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def shim_flow_area(x, D_d):
     """Opening area of a shim valve, eq. 4.27 [m^2]."""
     return max(x, 0.0) * math.pi * D_d
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def intake_flow_area(x, D_d, D_i):
     """Opening area of an intake valve, eq. 4.28 as printed (errata 20) [m^2]."""
     return max(x, 0.0) * math.pi * (D_d + D_i)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def jet_force(cq, A_f, dp, zeta):
     """Flow momentum force, eq. 4.24, acting to open (THESIS-ERRATA 23) [N]."""
     return 2.0 * cq * cq * A_f * dp * math.sin(zeta)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def stiction_force(x, xdot, mu, x_v0, D_d, D_i):
     """Squeeze-film stiction of an intake disc, eq. 4.25, with X = D_d/D_i > 1
     and mu = rho*nu (THESIS-ERRATA 21). Opposes xdot in both directions [N]."""
@@ -92,7 +170,7 @@ def stiction_force(x, xdot, mu, x_v0, D_d, D_i):
     return 3.0 * math.pi * mu / (32.0 * gap * gap * gap) * xdot * D_i ** 4 * bracket
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def dahl_rate(F, xdot, sigma0, F_c, alpha):
     """Dahl friction, eq. 4.26, as a rate: dF/dt = sigma0 (1 - F/F_c sgn(xdot))^alpha xdot.
     The exact sgn is kept (THESIS-ERRATA 22): the rate is continuous because it
@@ -106,7 +184,7 @@ def dahl_rate(F, xdot, sigma0, F_c, alpha):
     return sigma0 * base ** alpha * xdot
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact_force(x, v, x_max, k_c, c_c, delta):
     """Seat (x < 0) and lift stop (x > x_max) as one-sided penalty contacts
     (THESIS-ERRATA 27). The damping ramps in over ``delta`` of penetration and
@@ -121,25 +199,25 @@ def contact_force(x, v, x_max, k_c, c_c, delta):
     return f
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def valve_flow(p, o, x, dp, rho, nu, p_tr, use_cq_lambda, use_slot):
     """Flow through one valve [m^3/s] and the share of dp seen by the disc.
 
     [opening || bleed] in series with the slot (THESIS-ERRATA 25):
     G1 = Cq A_f + Cq_b A_bleed, G2 = Cq_s A_slot, G = G1 G2 / sqrt(G1^2 + G2^2),
     dp_disc = dp G2^2 / (G1^2 + G2^2). Returns (Q, dp_disc, Cq, A_f)."""
-    shim = p[o + V_SHIM] > 0.5
+    shim = p[o + V.SHIM] > 0.5
     if shim:
-        A_f = shim_flow_area(x, p[o + V_DD])
+        A_f = shim_flow_area(x, p[o + V.DD])
     else:
-        A_f = intake_flow_area(x, p[o + V_DD], p[o + V_DI])
+        A_f = intake_flow_area(x, p[o + V.DD], p[o + V.DI])
     if use_cq_lambda:
-        cq = discharge_coefficient(p[o + V_CQ], p[o + V_LAM], x, nu, dp, rho)
+        cq = discharge_coefficient(p[o + V.CQ], p[o + V.LAM], x, nu, dp, rho)
     else:
-        cq = p[o + V_CQ]
-    G1 = cq * A_f + p[o + V_CQB] * p[o + V_AB]
+        cq = p[o + V.CQ]
+    G1 = cq * A_f + p[o + V.CQB] * p[o + V.AB]
     if use_slot:
-        G2 = p[o + V_CQS] * p[o + V_AS]
+        G2 = p[o + V.CQS] * p[o + V.AS]
         s = G1 * G1 + G2 * G2
         G = G1 * G2 / math.sqrt(s)
         dp_disc = dp * G2 * G2 / s
@@ -149,26 +227,26 @@ def valve_flow(p, o, x, dp, rho, nu, p_tr, use_cq_lambda, use_slot):
     return orifice_flow(G, dp, rho, p_tr), dp_disc, cq, A_f
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def valve_acceleration(p, o, x, v, F_dahl, dp_disc, cq, A_f, mu, zeta, k_c, zeta_c, delta,
                        use_jet, use_stiction, use_friction):
     """Equation of motion eq. 4.20: m x'' = -c x' - F_k + F_st + F_dp - F_mu + F_m + F_contact.
     Returns (x'', dF_dahl/dt)."""
-    shim = p[o + V_SHIM] > 0.5
-    m = p[o + V_M]
+    shim = p[o + V.SHIM] > 0.5
+    m = p[o + V.M]
     if shim:
-        F_dp = shim_pressure_force(dp_disc, p[o + V_DD], p[o + V_DI])
+        F_dp = shim_pressure_force(dp_disc, p[o + V.DD], p[o + V.DI])
     else:
-        F_dp = intake_pressure_force(dp_disc, p[o + V_DD], p[o + V_DH])
-    F = F_dp - p[o + V_C] * v - stiffness_force(x, p[o + V_PRE], p[o + V_A], p[o + V_B], p[o + V_CC], p[o + V_D])
+        F_dp = intake_pressure_force(dp_disc, p[o + V.DD], p[o + V.DH])
+    F = F_dp - p[o + V.C] * v - stiffness_force(x, p[o + V.PRE], p[o + V.A], p[o + V.B], p[o + V.CC], p[o + V.D])
     if use_jet:
         F += jet_force(cq, A_f, dp_disc, zeta)
     if use_stiction and not shim:
-        F += stiction_force(x, v, mu, p[o + V_XV0], p[o + V_DD], p[o + V_DI])
+        F += stiction_force(x, v, mu, p[o + V.XV0], p[o + V.DD], p[o + V.DI])
     dF = 0.0
     if use_friction and shim:
         F -= F_dahl  # friction opposes motion (THESIS-ERRATA 22)
-        dF = dahl_rate(F_dahl, v, p[o + V_SIG], p[o + V_FC], p[o + V_ALPHA])
+        dF = dahl_rate(F_dahl, v, p[o + V.SIG], p[o + V.FC], p[o + V.ALPHA])
     c_c = 2.0 * zeta_c * math.sqrt(k_c * m)
-    F += contact_force(x, v, p[o + V_XMAX], k_c, c_c, delta)
+    F += contact_force(x, v, p[o + V.XMAX], k_c, c_c, delta)
     return F / m, dF

@@ -1,0 +1,33 @@
+"""Leakage past the piston band (not in the thesis model; off in the
+baseline design).
+
+A worn or loose piston band leaves an annular gap h of length L around the
+piston: laminar (Poiseuille) flow between the rebound and compression
+chambers, Q = G (P_r - P_c) with G = pi D h^3 / (12 mu L) [m^3/(s Pa)]
+(White, Viscous Fluid Flow, 3rd ed., eq. 3-44: narrow concentric annulus).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from .declarations import Parameter
+
+
+def _conductance(d):
+    mu = d["oil.rho_oil"] * d["oil.nu"]
+    return math.pi * d["geometry.D_PT"] * d.constant("leak_gap") ** 3 / (12.0 * mu * d.constant("leak_length"))
+
+
+PARAMETERS = (
+    Parameter("G_LEAK", "m^3/(s Pa)", _conductance, "laminar conductance of the piston-band gap"),
+    Parameter("E_LEAK", "-", "effects.piston_leakage", "switch: piston-band leakage"),
+)
+
+
+@njit(cache=True, error_model="numpy")
+def leakage_flow(G, P_r, P_c):
+    """Laminar leakage rebound -> compression [m^3/s]."""
+    return G * (P_r - P_c)
