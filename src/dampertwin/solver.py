@@ -58,6 +58,29 @@ _E21, _E22, _E23, _E24, _E25 = (0.1012623508344586e02, -0.7487995877610167e01, -
 _E31, _E32, _E33, _E34, _E35 = (-0.6762803392801253, 0.6087714651680015e01, 0.1643084320892478e02,
                                 0.2476722511418386e02, -0.6594389125716872e01)
 
+# ROS34PW2 (Rang & Angermann, BIT 45 (2005) 761-787): a 4-stage, order-3(2),
+# L-stable, stiffly accurate Rosenbrock-W method. Its order holds for any
+# approximation of the Jacobian, so the Jacobian is reused across steps.
+_WG = 0.435866521508459
+_WA21 = 0.87173304301691801
+_WA31, _WA32 = 0.84457060015369423, -0.11299064236484185
+_WG21 = -0.87173304301691801
+_WG31, _WG32 = -0.90338057013044082, 0.054180672388095326
+_WG41, _WG42, _WG43 = 0.24212380706095346, -1.2232505839045147, 0.54526025533510214
+_WB1, _WB2, _WB3, _WB4 = 0.24212380706095346, -1.2232505839045147, 1.5452602553351020, 0.435866521508459
+_WE1 = _WB1 - 0.37810903145819369  # b - b_hat (embedded order 2)
+_WE2 = _WB2 + 0.096042292212423178
+_WE3 = _WB3 - 0.5
+_WE4 = _WB4 - 0.2179332607542295
+_WC2, _WC3 = _WA21, _WA31 + _WA32
+_WGS2, _WGS3 = _WG21 + _WG, _WG31 + _WG32 + _WG  # gamma_i = sum_j gamma_ij (time-derivative terms)
+H_KEEP = 1.2  # a step-size increase below this factor is not taken (the LU is reused)
+JAC_MAX_AGE = 10  # accepted steps a Jacobian is kept at most (ROS34PW2)
+
+# methods
+RODAS4, ROS34PW2 = 0, 1
+METHODS = {"rodas4": RODAS4, "ros34pw2": ROS34PW2}
+
 # status codes
 OK, MAX_STEPS, STEP_UNDERFLOW, NON_FINITE, WALL_TIME, INVALID, STALLED = 0, 1, 2, 3, 4, 5, 6
 STATUS_TEXT = {OK: "ok", MAX_STEPS: "step cap reached", STEP_UNDERFLOW: "step size underflow",
@@ -66,7 +89,7 @@ STATUS_TEXT = {OK: "ok", MAX_STEPS: "step cap reached", STEP_UNDERFLOW: "step si
 # stats slots
 ST_STEPS, ST_ACCEPTED, ST_REJECTED, ST_FEVALS, ST_JACS = 0, 1, 2, 3, 4
 # controller slots (persist across chunks)
-CT_H, CT_HOLD, CT_ERROLD, CT_FIRST, CT_REJECT = 0, 1, 2, 3, 4
+CT_H, CT_HOLD, CT_ERROLD, CT_FIRST, CT_REJECT, CT_JAGE = 0, 1, 2, 3, 4, 5
 
 SAFE, FAC_MAX, FAC_MIN = 0.9, 5.0, 1.0 / 6.0
 H_MIN_REL = 1e-14
@@ -180,15 +203,15 @@ def fd_jacobian(rhs, t, z, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, 
                  out)
 
 
-_RODAS_SIG = types.UniTuple(types.float64, 3)(
+_STEP_SIG = types.UniTuple(types.float64, 3)(
     RHS, _A1, types.float64, types.float64, types.float64, _A1, _A2, _A1, _A1, types.float64, types.float64,
     types.float64, _A1, types.int64, _A2, _I1, _A1, types.int64[::1], types.int64, _I1, types.int64, _I1, _I1,
-    types.int64, types.float64)
+    types.int64, types.float64, _A2, _A1)
 
 
-@njit(_RODAS_SIG, **_JIT)
+@njit(_STEP_SIG, **_JIT)
 def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
-           channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h):
+           channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h, jac, ft):
     """Integrate scaled state z (in place) from t towards t_end, returning
     after the first accepted step that reaches t_pause (so pausing for a
     wall-time check never changes the step sequence). Writes selected output
@@ -201,8 +224,6 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
     out = np.empty(n_rhs_out)
     f0 = np.empty(n)
     f1 = np.empty(n)
-    ft = np.empty(n)
-    jac = np.zeros((n, n))
     dl = np.empty(n)
     zs = np.empty(n)
     a = np.empty((n, n))
@@ -356,19 +377,239 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
     return float(OK), t_end, float(i_out)
 
 
-@njit(types.void(RHS, _A2, _A1, types.float64, types.float64, _A2, _A2, _A1, _A1, types.float64, types.float64,
-                 types.float64, _A1, types.int64[::1], _A3, _I1, _A2, types.int64[:, ::1], types.int64[::1],
-                 types.int64, _I1, types.int64, _I1, _I1, types.int64),
+@njit(**_JIT)
+def _jac_mul_add(jac, col_ptr, row_idx, v, c, acc):
+    """acc += c * J v over the sparsity pattern (CSC)."""
+    for j in range(v.shape[0]):
+        vj = c * v[j]
+        if vj != 0.0:
+            for q in range(col_ptr[j], col_ptr[j + 1]):
+                r = row_idx[q]
+                acc[r] += jac[r, j] * vj
+
+
+@njit(_STEP_SIG, **_JIT)
+def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+             channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h, jac, ft):
+    """Same contract as :func:`rodas4`, with the ROS34PW2 Rosenbrock-W
+    method: the Jacobian ``jac`` (and df/dt ``ft``) persist across steps and
+    calls and are rebuilt only after a rejected step or JAC_MAX_AGE accepted
+    steps. Stage equations (Hairer & Wanner IV.7.4, W form):
+    (I - h g J) k_i = h f(t + c_i h, z + sum a_ij k_j) + h J sum g_ij k_j + g_i h^2 f_t.
+    Dense output: cubic Hermite on (z, f) at both ends of the step (order 3)."""
+    n = z.shape[0]
+    y = np.empty(n)
+    dy = np.empty(n)
+    out = np.empty(n_rhs_out)
+    f0 = np.empty(n)
+    f1 = np.empty(n)
+    dl = np.empty(n)
+    zs = np.empty(n)
+    a = np.empty((n, n))
+    piv = np.empty(n, np.int64)
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    yt = np.empty(n)
+    znew = np.empty(n)
+    zd = np.empty(n)
+    fn = np.empty(n)
+    n_out = t_out.shape[0]
+    h = fixed_h if fixed_h > 0.0 else ctrl[CT_H]
+    lu_h = -1.0  # step size of the factorisation held in a (-1: none); reset when J changes
+
+    _f(rhs, t, z, sc, p, ex, aux, f0, y, dy, out)
+    stats[ST_FEVALS] += 1
+    while t_end - t > H_MIN_REL * max(abs(t), 1.0):
+        if stats[ST_STEPS] >= max_steps:
+            ctrl[CT_H] = h
+            return float(MAX_STEPS), t, float(i_out)
+        fresh = False
+        if ctrl[CT_JAGE] >= JAC_MAX_AGE:
+            _fd_jacobian(rhs, t, z, f0, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl,
+                         y, dy, out)
+            stats[ST_FEVALS] += n_colours + 1
+            stats[ST_JACS] += 1
+            ctrl[CT_JAGE] = 0.0
+            fresh = True
+            lu_h = -1.0
+        while True:  # attempt steps until one is accepted
+            stats[ST_STEPS] += 1
+            if stats[ST_STEPS] > max_steps:
+                ctrl[CT_H] = h
+                return float(MAX_STEPS), t, float(i_out)
+            if fixed_h > 0.0:
+                h = fixed_h
+            h = min(h, h_max)
+            if t + 1.01 * h >= t_end:
+                h = t_end - t
+            if not h > H_MIN_REL * max(abs(t), 1.0):
+                ctrl[CT_H] = h
+                return float(STEP_UNDERFLOW), t, float(i_out)
+            if h != lu_h:  # same J and h: the factorisation of I/(g h) - J is unchanged
+                for i in range(n):
+                    for j in range(n):
+                        a[i, j] = -jac[i, j]
+                    a[i, i] += 1.0 / (_WG * h)
+                lu_ok = _lu_factor(a, piv)
+                lu_h = h if lu_ok else -1.0
+            else:
+                lu_ok = True
+            ok = lu_ok
+            finite = ok
+            err = 0.0
+            if ok:
+                # stage 1
+                for i in range(n):
+                    k1[i] = (f0[i] + _WG * h * ft[i]) / _WG  # divided by g: a holds (I/(g h) - J)
+                _lu_solve(a, piv, k1)
+                # stage 2
+                for i in range(n):
+                    yt[i] = z[i] + _WA21 * k1[i]
+                _f(rhs, t + _WC2 * h, yt, sc, p, ex, aux, f1, y, dy, out)
+                for i in range(n):
+                    k2[i] = f1[i] + _WGS2 * h * ft[i]
+                _jac_mul_add(jac, col_ptr, row_idx, k1, _WG21, k2)
+                for i in range(n):
+                    k2[i] /= _WG
+                _lu_solve(a, piv, k2)
+                # stage 3
+                for i in range(n):
+                    yt[i] = z[i] + _WA31 * k1[i] + _WA32 * k2[i]
+                _f(rhs, t + _WC3 * h, yt, sc, p, ex, aux, f1, y, dy, out)
+                for i in range(n):
+                    k3[i] = f1[i] + _WGS3 * h * ft[i]
+                _jac_mul_add(jac, col_ptr, row_idx, k1, _WG31, k3)
+                _jac_mul_add(jac, col_ptr, row_idx, k2, _WG32, k3)
+                for i in range(n):
+                    k3[i] /= _WG
+                _lu_solve(a, piv, k3)
+                # stage 4 (z + k3: the stiffly accurate end point)
+                for i in range(n):
+                    yt[i] = z[i] + k3[i]
+                _f(rhs, t + h, yt, sc, p, ex, aux, f1, y, dy, out)
+                for i in range(n):
+                    k4[i] = f1[i]
+                _jac_mul_add(jac, col_ptr, row_idx, k1, _WG41, k4)
+                _jac_mul_add(jac, col_ptr, row_idx, k2, _WG42, k4)
+                _jac_mul_add(jac, col_ptr, row_idx, k3, _WG43, k4)
+                for i in range(n):
+                    k4[i] /= _WG
+                _lu_solve(a, piv, k4)
+                stats[ST_FEVALS] += 3
+                for i in range(n):
+                    e = _WE1 * k1[i] + _WE2 * k2[i] + _WE3 * k3[i] + _WE4 * k4[i]
+                    znew[i] = z[i] + _WB1 * k1[i] + _WB2 * k2[i] + _WB3 * k3[i] + _WB4 * k4[i]
+                    sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
+                    err += (e / sk) ** 2
+                err = math.sqrt(err / n)
+                finite = math.isfinite(err)
+            if fixed_h > 0.0:
+                if not finite:
+                    ctrl[CT_H] = h
+                    return float(NON_FINITE), t, float(i_out)
+                hnew = h
+                break
+            if not finite or err > 1.0:
+                stats[ST_REJECTED] += 1
+                ctrl[CT_REJECT] = 1.0
+                if finite:
+                    h = h / max(FAC_MIN, min(FAC_MAX, err ** (1.0 / 3.0) / SAFE))
+                else:
+                    h *= 0.25
+                if not fresh:  # a stale Jacobian may be the culprit: rebuild it once
+                    _fd_jacobian(rhs, t, z, f0, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1,
+                                 zs, dl, y, dy, out)
+                    stats[ST_FEVALS] += n_colours + 1
+                    stats[ST_JACS] += 1
+                    ctrl[CT_JAGE] = 0.0
+                    fresh = True
+                    lu_h = -1.0
+                continue
+            fac = max(FAC_MIN, min(FAC_MAX, err ** (1.0 / 3.0) / SAFE))
+            hnew = h / fac
+            if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller
+                facpred = (ctrl[CT_HOLD] / h) * (err * err / ctrl[CT_ERROLD]) ** (1.0 / 3.0) / SAFE
+                facpred = max(FAC_MIN, min(FAC_MAX, facpred))
+                fac = max(fac, facpred)
+                hnew = h / fac
+            ctrl[CT_FIRST] = 0.0
+            ctrl[CT_HOLD] = h
+            ctrl[CT_ERROLD] = max(0.01, err)
+            if ctrl[CT_REJECT] > 0.0:
+                hnew = min(hnew, h)
+            if h <= hnew <= H_KEEP * h:  # keep h (and so the factorisation) for a small increase
+                hnew = h
+            ctrl[CT_REJECT] = 0.0
+            break
+        t_new = t + h
+        for i in range(n):
+            if not math.isfinite(znew[i]):
+                ctrl[CT_H] = h
+                return float(NON_FINITE), t, float(i_out)
+        _f(rhs, t_new, znew, sc, p, ex, aux, fn, y, dy, out)
+        stats[ST_FEVALS] += 1
+        # dense output: cubic Hermite through (z, f0) and (znew, fn)
+        while i_out < n_out and t_out[i_out] <= t_new * (1.0 + 1e-15):
+            s = (t_out[i_out] - t) / h
+            s2 = s * s
+            s3 = s2 * s
+            h00 = 2 * s3 - 3 * s2 + 1
+            h10 = s3 - 2 * s2 + s
+            h01 = -2 * s3 + 3 * s2
+            h11 = s3 - s2
+            for i in range(n):
+                zd[i] = h00 * z[i] + h10 * h * f0[i] + h01 * znew[i] + h11 * h * fn[i]
+            _f(rhs, t_out[i_out], zd, sc, p, ex, aux, f1, y, dy, out)
+            for c in range(channels.shape[0]):
+                out_buf[i_out, c] = out[channels[c]]
+            i_out += 1
+        for i in range(n):
+            z[i] = znew[i]
+            f0[i] = fn[i]
+        t = t_new
+        stats[ST_ACCEPTED] += 1
+        ctrl[CT_JAGE] += 1.0
+        fresh = False
+        h = hnew
+        if t >= t_pause:
+            ctrl[CT_H] = h
+            return float(OK), t, float(i_out)
+    while i_out < n_out and t_out[i_out] <= t_end * (1.0 + 1e-15):
+        _f(rhs, t_out[i_out], z, sc, p, ex, aux, f1, y, dy, out)
+        for c in range(channels.shape[0]):
+            out_buf[i_out, c] = out[channels[c]]
+        i_out += 1
+    ctrl[CT_H] = h
+    return float(OK), t_end, float(i_out)
+
+
+@njit(_STEP_SIG.return_type(types.int64, *_STEP_SIG.args), **_JIT)
+def step_chunk(method, rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+               channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h, jac, ft):
+    """Dispatch to the integration method (RODAS4 | ROS34PW2)."""
+    if method == ROS34PW2:
+        return ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+                        channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h,
+                        jac, ft)
+    return rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+                  channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h, jac, ft)
+
+
+@njit(types.void(types.int64, RHS, _A2, _A1, types.float64, types.float64, _A2, _A2, _A1, _A1, types.float64,
+                 types.float64, types.float64, _A1, types.int64[::1], _A3, _I1, _A2, types.int64[:, ::1],
+                 types.int64[::1], types.int64, _I1, types.int64, _I1, _I1, types.int64, _A3, _A2),
       parallel=True, **_JIT)
-def _batch_chunk(rhs, Z, T, t_end, t_pause, P, ex, aux, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
-                 channels, CTRL, STATS, STATUS, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out):
+def _batch_chunk(method, rhs, Z, T, t_end, t_pause, P, ex, aux, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
+                 channels, CTRL, STATS, STATUS, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, JAC, FT):
     m = Z.shape[0]
     for b in prange(m):
         if STATUS[b] >= 0:
             continue
-        st, tb, io = rodas4(rhs, Z[b], T[b], t_end, t_pause, P[b], ex, aux, sc, rtol, atol, h_max, t_out,
-                            I_OUT[b], OUT[b], channels, CTRL[b], STATS[b], max_steps, colour, n_colours,
-                            col_ptr, row_idx, n_rhs_out, 0.0)
+        st, tb, io = step_chunk(method, rhs, Z[b], T[b], t_end, t_pause, P[b], ex, aux, sc, rtol, atol, h_max,
+                                t_out, I_OUT[b], OUT[b], channels, CTRL[b], STATS[b], max_steps, colour, n_colours,
+                                col_ptr, row_idx, n_rhs_out, 0.0, JAC[b], FT[b])
         T[b] = tb
         I_OUT[b] = int(io)
         if int(st) != OK:
@@ -481,8 +722,14 @@ def probe_sparsity(rhs, Y: np.ndarray, scales: np.ndarray, times: np.ndarray, P:
     return J
 
 
+def _method(method: str) -> int:
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {list(METHODS)}, got {method!r}")
+    return METHODS[method]
+
+
 def _ctrl(h0):
-    return np.array([h0, h0, 1.0, 1.0, 0.0])
+    return np.array([h0, h0, 1.0, 1.0, 0.0, 1e9])
 
 
 def _prepare(sc, sparsity, n, atol, rtol, channels, n_rhs_out):
@@ -497,12 +744,14 @@ def _prepare(sc, sparsity, n, atol, rtol, channels, n_rhs_out):
 
 def integrate(rhs, p, ex, aux, y0, t_out, *, scales=None, n_rhs_out=1, sparsity=None, rtol=1e-4, atol=None,
               h0=1e-6, h_max=1e-3, max_steps=2_000_000, max_wall_s=None, chunk_s=0.05, channels=None,
-              fixed_h=0.0):
+              fixed_h=0.0, method="rodas4"):
     """Integrate ``rhs`` (compiled with :func:`rhs_signature`) for parameters
     p from y0 at t_out[0] over the output grid t_out. ``scales`` (typical
     state magnitudes; default 1) define the error norm; ``sparsity`` (a
     :class:`Sparsity`; default dense) the finite-difference Jacobian;
-    ``n_rhs_out`` the length of the RHS's ``out`` vector. Returns (outputs[n_t,
+    ``n_rhs_out`` the length of the RHS's ``out`` vector; ``method`` "rodas4"
+    (order 4, Jacobian every step) or "ros34pw2" (order 3 W-method,
+    Jacobian reused). Returns (outputs[n_t,
     n_channels], final state, RunStats); a run that hits a cap returns what it
     reached (remaining rows NaN)."""
     y0 = np.asarray(y0, float)
@@ -523,9 +772,11 @@ def integrate(rhs, p, ex, aux, y0, t_out, *, scales=None, n_rhs_out=1, sparsity=
     t0w = time.perf_counter()
     t_final = float(t_out[-1])
     step = chunk_s if max_wall_s is not None else (t_final - t)
+    meth = _method(method)
+    jac, ft = np.zeros((n, n)), np.zeros(n)
     while t < t_final:
-        st, t, io = rodas4(rhs, z, t, t_final, t + step, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out,
-                           channels, ctrl, stats, max_steps, *sp.args(), n_rhs_out, float(fixed_h))
+        st, t, io = step_chunk(meth, rhs, z, t, t_final, t + step, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out,
+                               out, channels, ctrl, stats, max_steps, *sp.args(), n_rhs_out, float(fixed_h), jac, ft)
         status, i_out = int(st), int(io)
         if status != OK:
             break
@@ -540,7 +791,7 @@ def integrate(rhs, p, ex, aux, y0, t_out, *, scales=None, n_rhs_out=1, sparsity=
 
 def integrate_batch(rhs, P, ex, aux, Y0, t_out, *, scales=None, n_rhs_out=1, sparsity=None, rtol=1e-4,
                     atol=None, h0=1e-6, h_max=1e-3, max_steps=2_000_000, max_wall_s=None, chunk_s=0.05,
-                    channels=None, progress=None, skip=None):
+                    channels=None, progress=None, skip=None, method="rodas4"):
     """Integrate many parameter sets (rows of P, initial states rows of Y0)
     in parallel threads. ``skip`` (bool per member) marks members not to run
     (status INVALID). Returns (outputs[m, n_t, n_channels], statuses[m],
@@ -562,6 +813,8 @@ def integrate_batch(rhs, P, ex, aux, Y0, t_out, *, scales=None, n_rhs_out=1, spa
         STATUS[np.asarray(skip, bool)] = INVALID
     T = np.full(m, float(t_out[0]))
     I_OUT = np.zeros(m, np.int64)
+    meth = _method(method)
+    JAC, FT = np.zeros((m, n, n)), np.zeros((m, n))
     ex = np.ascontiguousarray(ex, float)
     aux = np.ascontiguousarray(aux, float)
     t_final = float(t_out[-1])
@@ -571,8 +824,8 @@ def integrate_batch(rhs, P, ex, aux, Y0, t_out, *, scales=None, n_rhs_out=1, spa
     while np.any(STATUS < 0):
         t_pause = t + step
         T_before = T.copy()
-        _batch_chunk(rhs, Z, T, t_final, t_pause, P, ex, aux, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
-                     channels, CTRL, STATS, STATUS, max_steps, *sp.args(), n_rhs_out)
+        _batch_chunk(meth, rhs, Z, T, t_final, t_pause, P, ex, aux, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
+                     channels, CTRL, STATS, STATUS, max_steps, *sp.args(), n_rhs_out, JAC, FT)
         running = STATUS < 0
         done = running & (T >= t_final)
         STATUS[done] = OK

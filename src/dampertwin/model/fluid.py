@@ -39,17 +39,44 @@ PARAMETERS = (
 P_FLOOR = 100.0  # [Pa]
 
 
+# Regularisation REG-1 (not in the thesis): the undissolved gas share of
+# eq. 4.14 is clipped to [0, 1] with kinks at P_vap and P_sat, so the emulsion
+# modulus jumps there (4.98e8 -> 7.7e8 Pa at P_sat = 10 bar) and the
+# integrator rejects a step at every crossing (~25 per second at 13 Hz). The
+# clip is blended over +-SAT_BLEND around each kink (quadratic, C1): theta,
+# and so K, is exactly the sharp law outside the bands. SAT_BLEND = 0 gives
+# the sharp law.
+SAT_BLEND = 0.5e5  # [Pa]
+
+
 @njit(cache=True, error_model="numpy")
-def gas_fraction(P, P_sat, P_vap):
-    """Undissolved share theta of the gas, eq. 4.14, clipped to [0, 1]
-    (THESIS-ERRATA 10). Returns (theta, dtheta/dP)."""
-    span = P_sat - P_vap
-    th = 1.0 - (P - P_vap) / span
-    if th >= 1.0:
-        return 1.0, 0.0
-    if th <= 0.0:
+def _ramp(x, w):
+    """max(x, 0), blended quadratically over |x| < w (C1). Returns (value, slope)."""
+    if x <= -w:
         return 0.0, 0.0
-    return th, -1.0 / span
+    if x >= w:
+        return x, 1.0
+    return (x + w) * (x + w) / (4.0 * w), (x + w) / (2.0 * w)
+
+
+@njit(cache=True, error_model="numpy")
+def gas_fraction(P, P_sat, P_vap, blend=SAT_BLEND):
+    """Undissolved share theta of the gas, eq. 4.14, clipped to [0, 1]
+    (THESIS-ERRATA 10) with the REG-1 blend of half-width ``blend`` [Pa]:
+    theta = [ramp(P_sat - P) - ramp(P_vap - P)] / (P_sat - P_vap).
+    Returns (theta, dtheta/dP)."""
+    span = P_sat - P_vap
+    if blend <= 0.0:
+        th = 1.0 - (P - P_vap) / span
+        if th >= 1.0:
+            return 1.0, 0.0
+        if th <= 0.0:
+            return 0.0, 0.0
+        return th, -1.0 / span
+    w = min(blend, 0.25 * span)
+    r1, s1 = _ramp(P_sat - P, w)
+    r2, s2 = _ramp(P_vap - P, w)
+    return (r1 - r2) / span, (s2 - s1) / span
 
 
 @njit(cache=True, error_model="numpy")
