@@ -178,3 +178,39 @@ def test_nonfinite_parameters_end_with_a_status_not_an_exception():
     out, _, st = _run(linear, [np.inf, 1.0], [1.0, 1.0], t_out)
     assert st.status in (NON_FINITE, MAX_STEPS, 2) and not st.ok
     assert STALLED != OK
+
+
+def test_w_method_fixed_step_order_three_with_a_reused_jacobian():
+    """ROS34PW2 keeps order 3 although its Jacobian is rebuilt only every
+    JAC_MAX_AGE steps (the W-method property); slope 2.6-3.4."""
+    hs = np.array([0.2, 0.1, 0.05, 0.025])
+    errs = []
+    for h in hs:
+        out, _, st = _run(prothero_robinson, [1.0], [0.0, 1.0], np.array([0.0, 4.0]), fixed_h=h, h_max=1.0,
+                          rtol=1.0, method="ros34pw2")
+        assert st.ok and st.jacobians < st.accepted  # the Jacobian was reused
+        errs.append(np.max(np.abs(out[-1] - prothero_robinson_exact(np.array([4.0]))[0])))
+    slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
+    assert 2.6 <= slope <= 3.4, (errs, slope)
+
+
+@pytest.mark.parametrize("rtol", [1e-5, 1e-7])
+def test_w_method_global_error_and_dense_output(rtol):
+    t_out = np.linspace(0.0, 4.0, 2001)
+    out, _, st = _run(prothero_robinson, [1e3], [0.0, 1.0], t_out, rtol=rtol, atol=rtol, h_max=1.0,
+                      method="ros34pw2")
+    assert st.ok and st.accepted < 2000
+    assert np.max(np.abs(out - prothero_robinson_exact(t_out))) <= 10 * rtol
+
+
+def test_w_method_pausing_does_not_change_results():
+    rhs, p, y0, t_out = _vdp_args()
+    a, _, sa = _run(rhs, p, y0, t_out, method="ros34pw2")
+    b, _, sb = _run(rhs, p, y0, t_out, max_wall_s=1e6, chunk_s=0.007, method="ros34pw2")
+    assert sa.ok and sa.steps == sb.steps and sa.jacobians == sb.jacobians
+    np.testing.assert_array_equal(a, b)
+
+
+def test_unknown_method_rejected():
+    with pytest.raises(ValueError, match="method"):
+        _run(linear, [1.0, 1.0], [1.0, 1.0], np.linspace(0, 1, 3), method="euler")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,7 +44,11 @@ class Result:
         return self.stats.ok
 
     def to_frame(self) -> pd.DataFrame:
-        """Tidy frame, one row per sample, unit-suffixed columns."""
+        """Tidy frame, one row per sample, unit-suffixed columns. Warns when the
+        run did not finish (rows after the stop are NaN)."""
+        if not self.ok:
+            warnings.warn(f"simulation of design {self.design_hash[:12]} stopped early ({self.stats.message}); "
+                          "rows after the stop are NaN", RuntimeWarning, stacklevel=2)
         df = pd.DataFrame({"time [s]": self.time, **self.channels})
         df.attrs.update({"configuration": self.configuration, "design_hash": self.design_hash,
                          "current [A]": self.current, "solver": self.stats.message, **self.meta})

@@ -11,10 +11,16 @@ import os
 from pathlib import Path
 
 
-def _cache_dir() -> str:
+def cache_sources() -> list[Path]:
+    """Every source file compiled into the right-hand sides and the solver
+    (tests/test_model_core.py checks this covers all reachable compiled code)."""
     pkg = Path(__file__).resolve().parent
+    return sorted(pkg.glob("*.py")) + [pkg.parent / "solver.py"]
+
+
+def _cache_dir() -> str:
     h = hashlib.sha256()
-    for f in sorted(pkg.glob("*.py")) + [pkg.parent / "solver.py"]:
+    for f in cache_sources():
         h.update(f.read_bytes())
     base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dampertwin" / "numba"
     return str(base / h.hexdigest()[:16])

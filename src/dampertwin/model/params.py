@@ -89,7 +89,7 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
     if configuration == "valve":
         need(p[P.BENCH_V] > 0, f"bench volume = {p[P.BENCH_V]!r}; expected > 0")
     if configuration in ("damper", "module"):
-        need(p[P.A_R] > 0, f"geometry: rod diameter D_R must be smaller than the bore D_PT (annulus area {p[P.A_R]!r})")
+        need(p[P.A_R] > 0, f"geometry.D_R must be smaller than geometry.D_PT (annulus area {p[P.A_R]!r})")
         need(p[P.A_B] > 0, f"geometry.D_PT gives bore area {p[P.A_B]!r}; expected > 0")
         for name, key in (("L_R0", "geometry.l_r0"), ("L_C0", "geometry.l_c0"), ("V_B", "geometry.V_b"),
                           ("V_G0", "constants.V_gas0"), ("P0", "oil.P_0")):
