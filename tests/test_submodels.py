@@ -31,8 +31,27 @@ def K(P, **kw):
 
 # ------------------------------------------------------------ fluid
 def test_emulsion_equals_oil_above_saturation():
-    for P in (1.0e6 + 1.0, 2e6, 8e6):
+    for P in (1.0e6 + fluid.SAT_BLEND + 1.0, 2e6, 8e6):
         assert K(P) == pytest.approx(OIL["K_oil"], rel=1e-12)
+
+
+def test_reg1_blend_equals_the_sharp_law_outside_its_bands_and_removes_the_jump():
+    """REG-1: the clipped gas share of eq. 4.14 is blended over +-SAT_BLEND
+    around P_vap and P_sat; outside those bands theta is exactly the sharp
+    law; across P_sat the modulus no longer jumps (the sharp law jumps by
+    ~35 % of K_oil within 1 Pa)."""
+    w = fluid.SAT_BLEND
+    assert w > 0
+    P_sat, P_vap = OIL["P_sat"], OIL["P_vap"]
+    for P in np.concatenate([np.linspace(P_vap + w + 1, P_sat - w - 1, 50), np.linspace(P_sat + w + 1, 3e6, 20)]):
+        assert fluid.gas_fraction(P, P_sat, P_vap) == fluid.gas_fraction(P, P_sat, P_vap, 0.0)
+    sharp = [fluid.gas_fraction(P, P_sat, P_vap, 0.0)[1] for P in (P_sat - 0.5, P_sat + 0.5)]
+    assert sharp[0] != sharp[1]  # the kink being regularised
+    Ps = np.linspace(P_sat - 2 * w, P_sat + 2 * w, 2001)
+    ks = np.array([K(P) for P in Ps])
+    assert np.max(np.abs(np.diff(ks))) < 0.01 * OIL["K_oil"]  # continuous: no step between neighbours 100 Pa apart
+    th = np.array([fluid.gas_fraction(P, P_sat, P_vap)[0] for P in Ps])
+    assert np.all(np.diff(th) <= 0) and th.min() >= 0 and th.max() <= 1
 
 
 def test_emulsion_modulus_falls_with_gas_content():

@@ -66,14 +66,14 @@ def gas_fraction(P, P_sat, P_vap, blend=SAT_BLEND):
     theta = [ramp(P_sat - P) - ramp(P_vap - P)] / (P_sat - P_vap).
     Returns (theta, dtheta/dP)."""
     span = P_sat - P_vap
-    if blend <= 0.0:
-        th = 1.0 - (P - P_vap) / span
+    w = min(blend, 0.25 * span)
+    if w <= 0.0 or (P_vap + w <= P <= P_sat - w) or P >= P_sat + w or P <= P_vap - w:
+        th = 1.0 - (P - P_vap) / span  # the sharp law, exactly
         if th >= 1.0:
             return 1.0, 0.0
         if th <= 0.0:
             return 0.0, 0.0
         return th, -1.0 / span
-    w = min(blend, 0.25 * span)
     r1, s1 = _ramp(P_sat - P, w)
     r2, s2 = _ramp(P_vap - P, w)
     return (r1 - r2) / span, (s2 - s1) / span
