@@ -24,6 +24,7 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
+from ..errors import UserError
 from .schema import (
     BY_NUMBER,
     CONSTANT_TYPES,
@@ -43,13 +44,13 @@ CONST_FIELDS = ("name", "symbol", "description", "type", "value", "unit", "sourc
 TOP_KEYS = ("design", "description", "parameters", "constants", "effects")
 
 
-class DesignError(ValueError):
+class DesignError(UserError):
     """A design description is invalid; ``errors`` lists every problem."""
 
     def __init__(self, errors: list[str]):
         self.errors = list(errors)
         n = len(self.errors)
-        super().__init__(f"{n} problem{'s' * (n != 1)} in design description:\n  - " + "\n  - ".join(self.errors))
+        ValueError.__init__(self, f"{n} problem{'s' * (n != 1)} in design description:\n  - " + "\n  - ".join(self.errors))
 
 
 # --- YAML: accept 1e-6 as a float (YAML 1.2), which PyYAML reads as a string.
@@ -114,7 +115,7 @@ def yaml_error_line(e: Exception) -> str:
 MAX_CONFIG_BYTES = 5 * 1024 * 1024  # design / variant / config files larger than this are refused
 
 
-class ConfigTextError(ValueError):
+class ConfigTextError(UserError):
     """A config file that is not readable UTF-8 text (message names the file)."""
 
 
