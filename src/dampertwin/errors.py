@@ -37,6 +37,19 @@ def debug_enabled(argv: list[str] | None = None) -> bool:
         bool(argv and "--debug" in argv)
 
 
+def user_error_types() -> tuple[type, ...]:
+    """Exception types that mean bad input (config overrides included)."""
+    types: list[type] = [UserError, FileNotFoundError]
+    try:
+        from hydra.errors import HydraException
+        from omegaconf.errors import OmegaConfBaseException
+
+        types += [HydraException, OmegaConfBaseException]
+    except ImportError:  # pragma: no cover
+        pass
+    return tuple(types)
+
+
 def run_main(main: Callable[..., object], argv: list[str] | None = None, prog: str | None = None) -> int:
     """Call ``main(*argv)`` (``--debug`` removed); a user error (UserError,
     missing file) is one line ``prog: message`` and exit 2; other exceptions
@@ -47,7 +60,7 @@ def run_main(main: Callable[..., object], argv: list[str] | None = None, prog: s
     prog = prog or os.path.basename(sys.argv[0] or "dampertwin")
     try:
         main(*args)
-    except (UserError, FileNotFoundError) as e:
+    except user_error_types() as e:
         if debug:
             traceback.print_exc()
         print(f"{prog}: error: {one_line(e)}", file=sys.stderr)
@@ -55,4 +68,4 @@ def run_main(main: Callable[..., object], argv: list[str] | None = None, prog: s
     return 0
 
 
-__all__ = ["UserError", "USER_ERROR_EXIT", "one_line", "debug_enabled", "run_main"]
+__all__ = ["UserError", "USER_ERROR_EXIT", "one_line", "debug_enabled", "run_main", "user_error_types"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..design import Design
+from ..design import Design, DesignError
 from ..excitation import Excitation
 from ..io import runs
 from ..sensors import sensor_lowpass
@@ -76,23 +76,64 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
     return specs
 
 
-def _batch_objective(design: Design, specs, cases, configuration: str, channel, **sim_kw):
-    """A batch objective over several records: sum of eq. 6.x integrals."""
+def _batch_objective(design: Design, specs, cases, configuration: str, channel, max_wall_s: float | None = None,
+                     **sim_kw):
+    """A batch objective over several records: sum of eq. 6.x integrals.
+    Returns (values, reasons): a member whose design is invalid, whose
+    simulation raises, stops early or yields non-finite output is NaN with
+    its reason; the rest of the population is scored. Each simulate_batch
+    call is capped at ``max_wall_s`` [s] (profile config)."""
     keys = [s.key for s in specs]
 
-    def f(X: np.ndarray) -> np.ndarray:
-        designs = [design.with_overrides(dict(zip(keys, row))) for row in X]
-        J = np.zeros(len(designs))
+    def f(X: np.ndarray):
+        n = len(X)
+        designs: list = [None] * n
+        reasons: list = [None] * n
+        for i, row in enumerate(X):
+            try:
+                designs[i] = design.with_overrides(dict(zip(keys, map(float, row))))
+            except DesignError as e:
+                reasons[i] = "invalid design: " + "; ".join(e.errors)
+        J = np.zeros(n)
         for t, measured, ex, extra in cases:
-            _, ch, status = simulate_batch(designs, ex, configuration, rate=1.0 / (t[1] - t[0]),
-                                           duration=t[-1] - t[0], channels=list(channel.sources), **sim_kw, **extra)
-            sim = channel(ch)
-            for i in range(len(designs)):
-                j = integral_abs_error(t, measured, sim[i][: len(t)]) if status[i] == 0 else float("nan")
-                J[i] += j
-        return J
+            live = [i for i in range(n) if reasons[i] is None]
+            if not live:
+                break
+            sims = _simulate_members([designs[i] for i in live], ex, configuration, t, channel, max_wall_s,
+                                     {**sim_kw, **extra})
+            for i, (sim, why) in zip(live, sims):
+                if why is None and len(sim) != len(t):
+                    raise ValueError(f"simulated record has {len(sim)} samples, the measured one {len(t)}: "
+                                     f"the simulation must cover the whole record (no truncation)")
+                if why is None and not np.all(np.isfinite(sim)):
+                    why = "simulation output not finite"
+                if why is not None:
+                    reasons[i] = why
+                    continue
+                J[i] += integral_abs_error(t, measured, sim)
+        J[[i for i in range(n) if reasons[i] is not None]] = np.nan
+        return J, reasons
 
     return f
+
+
+def _simulate_members(designs, ex, configuration, t, channel, max_wall_s, kw) -> list[tuple]:
+    """[(simulated channel, failure reason or None)] per design. One batch
+    call; if it raises (one bad member must not lose the population), each
+    member is run alone and the one that raises is marked with its error."""
+    rate = 1.0 / (t[1] - t[0])
+    if int(round((t[-1] - t[0]) * rate)) + 1 != len(t):  # jittered clock: the mean rate gives the record's length
+        rate = (len(t) - 1) / (t[-1] - t[0])
+    call = dict(rate=rate, duration=t[-1] - t[0], channels=list(channel.sources), max_wall_s=max_wall_s, **kw)
+    try:
+        _, ch, status = simulate_batch(designs, ex, configuration, **call)
+        sim = channel(ch)
+        return [(sim[i], None if status[i] == 0 else f"simulation stopped (status {int(status[i])}: "
+                 f"step, wall-time ({max_wall_s} s) or solver failure)") for i in range(len(designs))]
+    except Exception as e:  # noqa: BLE001 - isolate the failing member below
+        if len(designs) == 1:  # a member's failure is its reason, not the end of the fit
+            return [(None, f"simulation raised {type(e).__name__}: {' '.join(str(e).split())[:200]}")]
+    return [m for d in designs for m in _simulate_members([d], ex, configuration, t, channel, max_wall_s, kw)]
 
 
 class _Channel:
@@ -130,7 +171,7 @@ def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, set
         t, ex = _record_input(g, "flow [m^3/s]", "flow", cal["input_cutoff"])
         cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
     ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
-    f = _batch_objective(design, specs, cases, "valve", ch, bench=bench)
+    f = _batch_objective(design, specs, cases, "valve", ch, settings.max_wall_s, bench=bench)
     x0 = {s.key: design[s.key] for s in specs}
     return run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
                   label=f"valve {valve}", progress=progress, context=_context(design, measured))
@@ -156,7 +197,7 @@ def fit_compliance(design: Design, measured: pd.DataFrame, cal: dict, settings: 
         t, ex = _record_input(g, "displacement [m]", "displacement", cal["input_cutoff"])
         cases.append((t, g["force [N]"].to_numpy(), ex, {"current": float(g["current [A]"].iloc[0])}))
     ch = _through_sensor("rod force [N]", force_bandwidth, 1.0 / (cases[0][0][1] - cases[0][0][0]))
-    f = _batch_objective(design, specs, cases, "damper", ch)
+    f = _batch_objective(design, specs, cases, "damper", ch, settings.max_wall_s)
     x0 = {s.key: design[s.key] for s in specs}
     return run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
                   label="compliance", progress=progress, context=_context(design, measured))
@@ -193,13 +234,13 @@ def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: G
     x0 = {s.key: design[s.key] for s in specs}
     row0 = np.array([[x0[s.key] for s in specs]])
     d_ls = design.with_overrides({"top_mount.F_LD": ls_coef})
-    j_nominal = float(_batch_objective(design, specs, cases, "topmount", ch)(row0)[0])
-    j_ls = float(_batch_objective(d_ls, specs, cases, "topmount", ch)(row0)[0])
+    j_nominal = float(_batch_objective(design, specs, cases, "topmount", ch, settings.max_wall_s)(row0)[0][0])
+    j_ls = float(_batch_objective(d_ls, specs, cases, "topmount", ch, settings.max_wall_s)(row0)[0][0])
     if j_ls <= j_nominal:
         d, coef, kept = d_ls, ls_coef, "least squares (thesis 7.2)"
     else:
         d, coef, kept = design, list(design["top_mount.F_LD"]), "nominal (least squares raised eq. 6.3)"
-    f = _batch_objective(d, specs, cases, "topmount", ch)
+    f = _batch_objective(d, specs, cases, "topmount", ch, settings.max_wall_s)
     res = run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
                  label="top mount", progress=progress, context=_context(design, measured))
     res.start_objective = j_nominal  # "before" = the uncalibrated design: nominal curve and dynamics
