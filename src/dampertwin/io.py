@@ -205,7 +205,7 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
                           f"{MIN_DURATION[protocol]:.4g} s")
         for q in EXCITED.get(protocol, ()):
             if q in numeric and np.ptp(numeric[q][sel]) == 0:
-                errors.append(f"{label}: column {qty[q]!r} is constant ({numeric[q][sel][0]!r}); expected a record "
+                errors.append(f"{label}: column {qty[q]!r} is constant ({float(numeric[q][sel][0])!r}); expected a record "
                               f"of the excited test (sensor disconnected?)")
     if current_range is not None and "current" in qty:
         cur = numeric["current"]

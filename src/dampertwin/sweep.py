@@ -287,7 +287,9 @@ def _main() -> None:
         run_variant(cfg)
 
     app()
-    if _OUTCOME["all_failed"]:
+    from dampertwin import sweep as this  # the callback's module (this file runs as __main__)
+
+    if this._OUTCOME["all_failed"]:
         log.error("every variant of the sweep failed")
         sys.exit(1)
 
