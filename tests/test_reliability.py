@@ -237,6 +237,14 @@ def test_variant_current_outside_the_map_is_not_clamped(tmp_path, current):
     assert str(p) in str(ei.value) and "outside the active-valve map [0.32, 1.6] A" in str(ei.value)
 
 
+@pytest.mark.parametrize("current", [math.nan, math.inf, 7.5])
+def test_applying_a_case_with_a_current_the_map_lacks_is_an_error(current):
+    from dampertwin.variants import Variant
+
+    with pytest.raises(VariantError, match="conf/variant/x.yaml: current"):
+        Variant("x", 1, "t", current, {}, "conf/variant/x.yaml").apply(load(BASELINE))
+
+
 # ------------------------------------------------------------ measurements
 def mono(n=20_000, fs=50_000.0, **cols):
     t = np.arange(n) / fs
@@ -284,7 +292,8 @@ FRAME_CASES = {
                                              "'comment [-]' is not numeric"),
     "non-SI unit of an unknown quantity": (lambda: mono(**{"pressure [bar]": 1.0}), "monosine", {},
                                            "unit 'bar' is not SI"),
-    "non-SI millimetres": (lambda: mono(**{"lift [mm]": 0.0}), "monosine", {}, "'lift [mm]': unit 'mm'"),
+    "non-SI millimetres": (lambda: mono(**{"stroke [mm]": 0.0}), "monosine", {}, "unit 'mm' is not SI"),
+    "non-SI litres per minute": (lambda: mono(**{"leak [l/min]": 0.0}), "monosine", {}, "unit 'l/min' is not SI"),
     "two columns of one quantity": (lambda: mono(**{"force  [N]": 0.0}), "monosine", {}, "hold the same quantity 'force'"),
     "NaN run labels": (_two_runs_nan_label, "monosine", {}, "missing (NaN) labels"),
     "boolean column": (lambda: mono(**{"flag [-]": True}), "monosine", {}, "'flag [-]' is not numeric"),
