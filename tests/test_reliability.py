@@ -507,6 +507,20 @@ def test_sweep_explicit_root_option(tmp_path):
     assert r.returncode == 2 and "--root" in r.stderr
 
 
+def test_sweep_project_root_resolution(tmp_path, monkeypatch):
+    from dampertwin.sweep import project_root
+
+    proj = _project_copy(tmp_path)
+    monkeypatch.delenv("DAMPERTWIN_ROOT", raising=False)
+    monkeypatch.chdir(proj / "conf")
+    assert project_root() == proj.resolve()                         # the repository around the cwd
+    monkeypatch.setenv("DAMPERTWIN_ROOT", str(ROOT))
+    assert project_root() == ROOT.resolve()                         # the environment variable wins
+    assert project_root(proj) == proj.resolve()                     # an explicit option wins over both
+    with pytest.raises(UserError, match="no conf/ folder"):
+        project_root(tmp_path)
+
+
 def test_sweep_factor_without_level_is_recorded_as_failed(tmp_path):
     r = _sweep(ROOT, f"results_dir={tmp_path}", "variant=baseline_1.6", "factor=base_intake.a")
     assert r.returncode != 0 and "Traceback" not in r.stderr
