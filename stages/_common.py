@@ -4,13 +4,20 @@ writes). Stages are thin: parse config, call src/dampertwin, write outputs."""
 from __future__ import annotations
 
 import json
+import math
 import os
+import shutil
+import signal
+import sys
+import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 import yaml
 
 from dampertwin.config import compose, repo_root
-from dampertwin.design import Design, load, yaml_load
+from dampertwin.design import ConfigTextError, Design, load, yaml_load_file
+from dampertwin.errors import UserError, run_main
 
 ROOT = repo_root(Path(__file__).parent)
 CONF = ROOT / "conf"
@@ -19,7 +26,45 @@ MEASURED = ROOT / "data" / "measured"
 
 
 def params() -> dict:
-    return yaml_load((ROOT / "params.yaml").read_text())
+    doc = yaml_load_file(ROOT / "params.yaml")
+    if not isinstance(doc, dict) or doc.get("profile") not in [p.stem for p in (CONF / "profile").glob("*.yaml")]:
+        raise UserError(f"{ROOT / 'params.yaml'}: profile {doc.get('profile') if isinstance(doc, dict) else doc!r}; "
+                        f"expected one of {sorted(p.stem for p in (CONF / 'profile').glob('*.yaml'))}")
+    return doc
+
+
+def stage(main, prog: str) -> None:
+    """Run a stage's main(*argv): a user error is one line on stderr and exit
+    2 (``--debug`` or DAMPERTWIN_DEBUG=1 adds the traceback); SIGTERM
+    unwinds like Ctrl-C, so temporary outputs are removed."""
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    sys.exit(run_main(main, sys.argv[1:], prog=prog))
+
+
+def choice(name: str, options, what: str) -> str:
+    """``name`` if it is one of ``options``, else a UserError listing them."""
+    if name not in options:
+        raise UserError(f"unknown {what} {name!r}; expected one of {', '.join(options)}")
+    return name
+
+
+@contextmanager
+def staged_dir(out: Path):
+    """Build a stage's output folder in a temporary sibling and swap it in at
+    the end: a failed or killed stage leaves no partial artifact folder (and
+    the next run removes a temporary one a SIGKILL left behind)."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    for stale in out.parent.glob(f".{out.name}.tmp*"):
+        shutil.rmtree(stale, ignore_errors=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp", dir=out.parent))
+    try:
+        yield tmp
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def config():
@@ -60,7 +105,15 @@ def write_overlay(path: Path, overrides: dict, meta: dict) -> Path:
 
 
 def read_overlay(path: Path) -> dict:
-    return yaml_load(path.read_text())["overrides"]
+    if not path.is_file():
+        raise UserError(f"{path}: fit overlay not found; expected the output of its fit stage (run dvc repro)")
+    try:
+        doc = yaml_load_file(path)
+    except ConfigTextError as e:
+        raise UserError(str(e)) from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("overrides"), dict):
+        raise UserError(f"{path}: expected a mapping with an 'overrides' mapping of parameter -> value")
+    return doc["overrides"]
 
 
 def seed_for(name: str) -> int:
@@ -81,11 +134,14 @@ def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dic
     from dampertwin.io import write_frame
 
     meta = {**meta, "config_hash": config_hash()}
+    start, best_j = res.start_objective, res.best_objective
+    improvement = 100 * (1 - best_j / start) if math.isfinite(start) and start > 0 else None
     write_overlay(out / "overlay.yaml", res.best if best is None else best, meta)
     write_frame(out / "history.parquet",
                 res.history.rename(columns={"best": f"best [{unit}]", "mean": f"mean [{unit}]"}),
                 {**meta, "design_hash": design_hash})
-    write_json(out / "metrics.json", {"objective_start": res.start_objective, "objective_best": res.best_objective,
-                                      "improvement_pct": 100 * (1 - res.best_objective / res.start_objective),
+    write_json(out / "metrics.json", {"objective_start": start, "objective_best": best_j,
+                                      "improvement_pct": improvement,
                                       "failed_simulations": res.failed, "evaluations": res.evaluations,
+                                      **({"failure_reasons": res.failures} if res.failures else {}),
                                       **(extra or {})})

@@ -2,9 +2,7 @@
 overlays (its valves, compliance, its top mount) ->
 results/approach1/designs/<case>.yaml."""
 
-import sys
-
-from _common import CONF, OUT, baseline, read_overlay
+from _common import CONF, OUT, baseline, read_overlay, stage
 from dampertwin.variants import TOP_MOUNTS, VALVE_DESIGNS, load_variant
 
 
@@ -23,9 +21,9 @@ def overlays_for(case: str) -> list:
 def main(case: str) -> None:
     d = load_variant(CONF / "variant" / f"{case}.yaml").apply(baseline())
     for p in overlays_for(case):
-        d = d.with_overrides(read_overlay(p))
+        d = d.with_overrides(read_overlay(p), source=p)
     d.dump(OUT / "designs" / f"{case}.yaml")
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    stage(main, "assemble")

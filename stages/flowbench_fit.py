@@ -4,45 +4,45 @@
     python stages/flowbench_fit.py piston_rebound_lower
 """
 
-import sys
-
 import matplotlib.pyplot as plt
 
-from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, seed_for, write_fit
+from _common import CONF, MEASURED, OUT, baseline, checkpoint, choice, config, seed_for, stage, staged_dir, write_fit
 from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
-from dampertwin.design import yaml_load
+from dampertwin.design import yaml_load_file
 from dampertwin.io import read_frame
 from dampertwin.simulation import simulate
-from dampertwin.protocols import build_runs, load_protocol
+from dampertwin.protocols import build_runs, load_protocol, recording_rates
 from dampertwin.variants import VALVE_DESIGNS, load_variant
 
 
 def main(name: str) -> None:
-    valve, case = VALVE_DESIGNS[name]
+    valve, case = VALVE_DESIGNS[choice(name, VALVE_DESIGNS, "valve design")]
     cfg = config()
     d = baseline()
     if case:
         d = load_variant(CONF / "variant" / f"{case}.yaml").apply(d)
-    cal = yaml_load((CONF / "calibration" / "valves.yaml").read_text())
+    cal = yaml_load_file(CONF / "calibration" / "valves.yaml")
     fb = load_protocol(CONF / "test" / "flowbench.yaml")
     bench = {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
-    meas, _ = read_frame(MEASURED / "flowbench" / f"{name}.parquet", "flowbench")
+    meas, _ = read_frame(MEASURED / "flowbench" / f"{name}.parquet", "flowbench", rate=recording_rates(fb))
     out = OUT / "valves" / name
     seed = seed_for(f"flowbench_fit/{name}")
     res = fit_valve(d, valve, meas, cal, GASettings.from_config(cfg.profile.ga.valves), seed, bench=bench,
                     checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler)
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
-    write_fit(out, res, meta, "Pa*s", d.hash())
-    run = next(r for r in build_runs(fb) if r.bench_valve == valve)
-    sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate, bench=bench)
-    fig = report.pq_figure({valve: meas}, {valve: sim.to_frame()}, f"{name}: flow bench, measured vs fitted model")
-    fig.savefig(out / "pq.png", dpi=100)
-    plt.close(fig)
+    with staged_dir(out) as tmp:  # all outputs or none
+        write_fit(tmp, res, meta, "Pa*s", d.hash())
+        run = next(r for r in build_runs(fb) if r.bench_valve == valve)
+        sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate,
+                       bench=bench)
+        fig = report.pq_figure({valve: meas}, {valve: sim.to_frame()}, f"{name}: flow bench, measured vs fitted model")
+        fig.savefig(tmp / "pq.png", dpi=100)
+        plt.close(fig)
     checkpoint(f"valve_{name}").unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    stage(main, "flowbench_fit")

@@ -4,17 +4,18 @@
 """
 
 import shutil
-import sys
 import tempfile
 from pathlib import Path
 
 from dampertwin.config import compose, repo_root
 from dampertwin.lab import generate
 
+from _common import stage
 
-def main(argv: list[str]) -> None:
+
+def main(*argv: str) -> None:
     root = repo_root(Path(__file__).parent)
-    cfg = compose(argv, root)
+    cfg = compose(list(argv), root)
     out = root / "data" / "measured"
     # write into a temporary folder, then swap: a killed stage leaves no half-written data
     tmp = Path(tempfile.mkdtemp(prefix=".measured.", dir=out.parent))
@@ -29,4 +30,4 @@ def main(argv: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    stage(main, "lab")

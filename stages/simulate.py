@@ -6,30 +6,31 @@ bandwidths (conf/test/<test>.yaml `sensors`), so they compare with the
 measurement through the same chain; the raw model signals are kept too.
 Time series -> results/approach1/sim/<case>/<test>.parquet."""
 
-import sys
-
 import pandas as pd
 
-from _common import CONF, MEASURED, OUT, config, config_hash
+from _common import CONF, MEASURED, OUT, config, config_hash, stage
 from dampertwin.design import load
 from dampertwin.io import read_frame, runs, write_frame
-from dampertwin.protocols import load_protocol
+from dampertwin.protocols import load_protocol, recording_rates
 from dampertwin.sensors import sensor_lowpass
 from dampertwin.report import simulate_from_record
-from dampertwin.variants import load_variant
+from dampertwin.variants import check_current, load_variant
 
 TESTS = {"monosine": "module", "random": "module", "curving": "damper"}
 
 
 def main(case: str) -> None:
-    design = load(OUT / "designs" / f"{case}.yaml")
+    design = load(OUT / "designs" / f"{case}.yaml", map_dirs=[CONF / "design"])  # its map stays in conf/design
     variant = load_variant(CONF / "variant" / f"{case}.yaml")
+    check_current(variant.current, design, variant.path)
     cfg = config()
     tests = ["monosine", "random"] + (["curving"] if case == "baseline_1.6" else [])
     for test in tests:
         src = MEASURED / test / f"{('baseline' if test == 'curving' else case)}.parquet"
-        sensors = load_protocol(CONF / "test" / f"{test}.yaml").get("sensors", {})
-        meas, mmeta = read_frame(src, test, current_range=(design.pq_map.currents[0], design.pq_map.currents[-1]))
+        proto = load_protocol(CONF / "test" / f"{test}.yaml")
+        sensors = proto.get("sensors", {})
+        meas, mmeta = read_frame(src, test, current_range=(design.pq_map.currents[0], design.pq_map.currents[-1]),
+                                 rate=recording_rates(proto))
         frames = []
         for name, g in runs(meas):
             cur = float(g["current [A]"].iloc[0]) if test == "curving" else variant.current
@@ -58,4 +59,4 @@ def main(case: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    stage(main, "simulate")

@@ -5,7 +5,7 @@ what depends on that valve."""
 
 import hashlib
 
-from _common import OUT, baseline, write_json
+from _common import OUT, baseline, stage, write_json
 
 
 def main() -> None:
@@ -22,4 +22,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    stage(main, "split_design")

@@ -5,7 +5,8 @@ without @hydra.main; variants run in parallel on the local cores (joblib)."""
 
 from joblib import Parallel, delayed
 
-from _common import CONF, ROOT
+from _common import CONF, ROOT, stage
+from dampertwin.errors import UserError
 from dampertwin.sweep import run_variant, summarize, trend_agreement
 
 
@@ -14,6 +15,10 @@ def main() -> None:
     cfgs = [compose_sweep([f"variant={c}", "sweep=study_table65"]) for c in cases]
     Parallel(n_jobs=2)(delayed(run_variant)(c, ROOT) for c in cfgs)
     tab = summarize(ROOT / "results" / "sweeps" / "study_table65")
+    failed = int((tab.status != "ok").sum()) if len(tab) else 0
+    if len(tab) == 0 or failed == len(tab):
+        raise UserError(f"every variant of the sweep failed ({failed}); see "
+                        f"{ROOT / 'results' / 'sweeps' / 'study_table65' / 'summary.md'}")
     agree, total = trend_agreement(tab)
     print(f"table 6.5 trend agreement with the thesis' measured column: {agree}/{total}")
 
@@ -27,4 +32,4 @@ def compose_sweep(overrides):
 
 
 if __name__ == "__main__":
-    main()
+    stage(main, "sweep")

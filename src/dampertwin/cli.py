@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+import traceback
 from pathlib import Path
 
 from .design import TYPES, DesignError, load
 from .design.schema import TYPE_MEANING
+from .errors import USER_ERROR_EXIT, debug_enabled, one_line, user_error_types
 
 DEFAULT_DESIGN = Path("conf/design/baseline.yaml")
 
@@ -48,7 +50,22 @@ def format_table(design, ptype: str | None = None) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="dampertwin", description="Semi-active damper digital twin")
+    """Entry point: a user error (bad file, key, column) is one line on
+    stderr and exit 2; ``--debug`` or DAMPERTWIN_DEBUG=1 adds the traceback."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = debug_enabled(argv)
+    try:
+        return _main([a for a in argv if a != "--debug"])
+    except user_error_types() as e:
+        if debug:
+            traceback.print_exc()
+        print(f"dampertwin: error: {one_line(e)}", file=sys.stderr)
+        return USER_ERROR_EXIT
+
+
+def _main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="dampertwin", description="Semi-active damper digital twin "
+                                 "(--debug: tracebacks for errors)")
     sub = ap.add_subparsers(dest="cmd", required=True)
     dsg = sub.add_parser("design", help="inspect and validate design descriptions")
     dsub = dsg.add_subparsers(dest="action", required=True)

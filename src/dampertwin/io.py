@@ -16,6 +16,9 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from .design.schema import SI_UNITS
+from .errors import UserError
+
 META_KEY = b"dampertwin"
 
 # quantity -> SI unit accepted in column names
@@ -38,14 +41,23 @@ REQUIRED = {
 MIN_DURATION = {"flowbench": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
                 "topmount": 0.02, "training": 1.0, "verification": 1.0}
 UNIFORM_TOL = 1e-3  # relative spread of the sampling interval still called uniform
+RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's still accepted
+# channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
+EXCITED = {"flowbench": ("flow", "dp"), **{p: ("displacement", "force") for p in
+                                            ("compliance", "curving", "monosine", "random", "training",
+                                             "verification", "topmount")}}
+# every unit a column may carry (SI); anything else (bar, mm, kN, l/min, g, degC, ...) is rejected
+SI_COLUMN_UNITS = frozenset(UNITS.values()) | SI_UNITS | {"m/s^2", "N*s", "Pa*s", "W", "J"}
 
 _COL = re.compile(r"^(?P<q>[^\[\]]+?)\s*\[(?P<u>[^\[\]]*)\]$")
 
 
-class DataError(ValueError):
+class DataError(UserError):
+    """A data file is invalid; ``errors`` lists every problem (file and column named)."""
+
     def __init__(self, errors: list[str]):
         self.errors = list(errors)
-        super().__init__("invalid data file:\n  - " + "\n  - ".join(self.errors))
+        ValueError.__init__(self, "invalid data file:\n  - " + "\n  - ".join(self.errors))
 
 
 def column(quantity: str) -> str:
@@ -87,9 +99,13 @@ def read_meta(path: str | os.PathLike) -> dict:
 
 
 def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
-               current_range: tuple[float, float] | None = None) -> tuple[pd.DataFrame, dict]:
+               current_range: tuple[float, float] | None = None,
+               rate: float | dict[str, float] | None = None) -> tuple[pd.DataFrame, dict]:
     """Read and check a measured (or simulated) frame. ``protocol`` names the
-    test whose columns and minimum duration are required. Raises DataError
+    test whose columns, minimum duration and excited (non-constant) channels
+    are required; ``rate`` [Hz] (one value, or per run label, see
+    ``protocols.recording_rates``) the sampling rate it must be recorded at.
+    Every column needs an SI unit, one column per quantity. Raises DataError
     naming the file and the column for every problem found."""
     path = Path(path)
     where = str(path)
@@ -111,7 +127,15 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
     except Exception as e:  # unreadable file: report it, never a raw traceback
         raise DataError([f"{where}: cannot read: {e}"]) from None
     errors: list[str] = []
-    qty = {}
+    qty: dict[str, str] = {}
+    if "run" in df:
+        r = df["run"]
+        ok_type = r.map(lambda x: isinstance(x, (str, int, np.integer)) and not isinstance(x, bool))
+        if r.isna().any():
+            errors.append(f"{where}: column 'run' has {int(r.isna().sum())} missing (NaN) labels; expected a label "
+                          f"on every row")
+        elif not ok_type.all():
+            errors.append(f"{where}: column 'run' holds {type(r[~ok_type].iloc[0]).__name__} labels; expected strings")
     for c in df.columns:
         if c == "run":
             continue
@@ -123,23 +147,42 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
         if q in UNITS and u != UNITS[q]:
             errors.append(f"{where}: column {c!r}: unit {u!r}; expected {UNITS[q]!r}")
             continue
+        if u not in SI_COLUMN_UNITS:
+            errors.append(f"{where}: column {c!r}: unit {u!r} is not SI; expected one of "
+                          f"{', '.join(sorted(SI_COLUMN_UNITS))} (convert before loading)")
+            continue
+        if q in qty:
+            errors.append(f"{where}: columns {qty[q]!r} and {c!r} hold the same quantity {q!r}; expected one column")
+            continue
         qty[q] = c
     for q in REQUIRED.get(protocol, ("time",)):
         if q not in qty:
             errors.append(f"{where}: missing column {column(q)!r} (protocol {protocol})")
+    numeric = {}
     for q, c in qty.items():
-        if q in UNITS and c in df and not pd.api.types.is_numeric_dtype(df[c]):
-            errors.append(f"{where}: column {c!r} is not numeric")
-        elif c in df and not np.all(np.isfinite(df[c].to_numpy(float))):
-            bad = int(np.sum(~np.isfinite(df[c].to_numpy(float))))
-            errors.append(f"{where}: column {c!r} has {bad} NaN/inf values")
+        col = df.loc[:, c]
+        if isinstance(col, pd.DataFrame):  # duplicated column name
+            errors.append(f"{where}: column {c!r} appears {col.shape[1]} times; expected once")
+            continue
+        if not pd.api.types.is_numeric_dtype(col) or pd.api.types.is_bool_dtype(col):
+            errors.append(f"{where}: column {c!r} is not numeric (dtype {col.dtype}); expected numbers in {q!r}")
+            continue
+        x = col.to_numpy(float)
+        if not np.all(np.isfinite(x)):
+            errors.append(f"{where}: column {c!r} has {int(np.sum(~np.isfinite(x)))} NaN/inf values")
+            continue
+        numeric[q] = x
     if errors:
         raise DataError(errors)
     tcol = qty["time"]
-    groups = df.groupby("run", sort=False) if "run" in df else [(None, df)]
-    for run, g in groups:
-        label = f"{where}" + (f" run {run!r}" if run is not None else "")
-        t = g[tcol].to_numpy(float)
+    labels = df["run"].to_numpy() if "run" in df else np.zeros(len(df), int)
+    order = list(dict.fromkeys(labels.tolist()))
+    if not order:
+        errors.append(f"{where}: no rows; expected a record")
+    for run in order:
+        sel = labels == run
+        label = f"{where}" + (f" run {run!r}" if "run" in df else "")
+        t = numeric["time"][sel]
         dt = np.diff(t)
         if len(t) < 2:
             errors.append(f"{label}: column {tcol!r}: fewer than 2 samples")
@@ -151,11 +194,21 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
         elif np.ptp(dt) > UNIFORM_TOL * np.mean(dt):
             errors.append(f"{label}: column {tcol!r}: non-uniform sampling (interval {dt.min():.3g} .. {dt.max():.3g} s); "
                           f"a uniform grid is required")
+        else:
+            want = rate.get(str(run)) if isinstance(rate, dict) else rate
+            fs = 1.0 / float(np.mean(dt))
+            if want is not None and abs(fs - want) > RATE_TOL * want:
+                errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz; protocol {protocol} records at "
+                              f"{want:g} Hz (decimated or time-scaled record?)")
         if protocol is not None and t[-1] - t[0] < MIN_DURATION[protocol] * (1 - 1e-9):
             errors.append(f"{label}: record lasts {t[-1] - t[0]:.4g} s; protocol {protocol} needs >= "
                           f"{MIN_DURATION[protocol]:.4g} s")
+        for q in EXCITED.get(protocol, ()):
+            if q in numeric and np.ptp(numeric[q][sel]) == 0:
+                errors.append(f"{label}: column {qty[q]!r} is constant ({float(numeric[q][sel][0])!r}); expected a record "
+                              f"of the excited test (sensor disconnected?)")
     if current_range is not None and "current" in qty:
-        cur = df[qty["current"]].to_numpy(float)
+        cur = numeric["current"]
         lo, hi = current_range
         out = cur[(cur < lo - 1e-12) | (cur > hi + 1e-12)]
         if len(out):

@@ -28,7 +28,8 @@ import pandas as pd
 from . import __version__
 from .design import Design
 from .design import load as load_design
-from .design import yaml_load
+from .design import ConfigTextError, yaml_load_file
+from .errors import UserError
 from .excitation import Excitation
 from .io import write_frame
 from .protocols import Run, build_runs, load_all
@@ -40,14 +41,17 @@ LAB_VERSION = "dampertwin-lab 1"
 SAMPLE_KEYS = ("generator", "seed_offset", "factors", "values", "effects", "benches")
 
 
-class LabError(ValueError):
-    pass
+class LabError(UserError):
+    """A lab description (hidden sample) is invalid, or a lab run failed."""
 
 
 def load_sample(path: str | Path) -> dict:
     """Read and check the hidden-sample description."""
     path = Path(path)
-    doc = yaml_load(path.read_text())
+    try:
+        doc = yaml_load_file(path)
+    except ConfigTextError as e:
+        raise LabError(str(e)) from None
     if not isinstance(doc, dict) or set(doc) != set(SAMPLE_KEYS):
         raise LabError(f"{path}: expected exactly the keys {', '.join(SAMPLE_KEYS)}")
     b = doc["benches"]

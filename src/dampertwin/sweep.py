@@ -18,6 +18,10 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
+import os
+import re
+import sys
 import traceback
 from pathlib import Path
 
@@ -26,13 +30,16 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from . import kpi
+from .config import repo_root
 from .design import Design, load
+from .errors import UserError, one_line
 from .io import write_frame
 from .protocols import build_runs, load_protocol
 from .simulation import simulate
+from .variants import check_current
 
 log = logging.getLogger("dampertwin.sweep")
-ROOT = Path(__file__).resolve().parents[2]
+ROOT_ENV = "DAMPERTWIN_ROOT"
 COMPLETE, FAILED = "_COMPLETE.json", "_FAILED.json"
 KPIS = ("rebound peak [g]", "compression peak [g]", "PSD 200 Hz [dB]", "PSD 300 Hz [dB]", "peak rod force [N]")
 # thesis table 6.5, measured column (rebound, compression peaks [g]) for the trend check
@@ -45,14 +52,45 @@ THESIS_MEASURED = {
 BASELINE_CASE = "baseline_1.6"
 
 
+def project_root(root: str | Path | None = None) -> Path:
+    """The project whose conf/ and results/ a sweep uses: ``root`` if given,
+    else $DAMPERTWIN_ROOT, else the repository around the working directory
+    (as DVC and Hydra do) — never the installed package's location."""
+    root = root or os.environ.get(ROOT_ENV)
+    if root:
+        r = Path(root).resolve()
+        if not (r / "conf").is_dir():
+            raise UserError(f"{r}: no conf/ folder; expected a dampertwin project root")
+        return r
+    try:
+        return repo_root(Path.cwd())
+    except FileNotFoundError as e:
+        raise UserError(f"{e}; run from inside the project, or give --root DIR or ${ROOT_ENV}") from None
+
+
+def _root(cfg: DictConfig, root: Path | None) -> Path:
+    return Path(root) if root is not None else project_root(cfg.get("root"))
+
+
+def _level(cfg: DictConfig) -> float:
+    """The OFAT level of ``factor`` as a finite number (UserError otherwise)."""
+    lv = cfg.get("level")
+    if isinstance(lv, bool) or not isinstance(lv, (int, float)) or not math.isfinite(lv):
+        raise UserError(f"factor={cfg.factor}: level {lv!r}; expected a finite number (e.g. level=-0.2,0.2)")
+    return float(lv)
+
+
 def job_name(cfg: DictConfig) -> str:
-    name = cfg.variant.case
+    name = str(cfg.variant.case)
     if cfg.get("factor"):
-        name += f"__{cfg.factor}@{float(cfg.level):+.0%}"
-    return name
+        try:
+            name += f"__{cfg.factor}@{_level(cfg):+.0%}"
+        except UserError:
+            name += f"__{cfg.factor}@invalid-level"
+    return re.sub(r"[^\w.@+%=-]", "_", name)  # one folder, never a path
 
 
-RUN_CONTROL = ("hydra", "fail_on", "results_dir", "sweep")  # keys that do not change a variant's results
+RUN_CONTROL = ("hydra", "fail_on", "results_dir", "sweep", "root")  # keys that do not change a variant's results
 
 
 def config_hash(cfg: DictConfig) -> str:
@@ -63,31 +101,41 @@ def config_hash(cfg: DictConfig) -> str:
     return hashlib.sha256(json.dumps(c, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def design_for(cfg: DictConfig, root: Path = ROOT) -> Design:
+def design_for(cfg: DictConfig, root: Path | None = None) -> Design:
     """The calibrated design of the case when the approach-1 study produced
     one, else the nominal baseline with the case's overrides; then the OFAT
-    factor, if any."""
+    factor, if any. Errors name the variant file or the factor."""
+    root = _root(cfg, root)
     case = cfg.variant.case
     cal = root / cfg.calibrated / f"{case}.yaml"
     if cfg.use_calibrated and cal.is_file():
-        d = load(cal)
+        d = load(cal, map_dirs=[(root / cfg.design).parent])  # a calibrated design keeps the nominal P/Q map
     else:
         d = load(root / cfg.design)
         if cfg.variant.overrides:
-            d = d.with_overrides(OmegaConf.to_container(cfg.variant.overrides, resolve=True))
+            d = d.with_overrides(OmegaConf.to_container(cfg.variant.overrides, resolve=True),
+                                 source=root / "conf" / "variant" / f"{case}.yaml")
     if cfg.get("factor"):
-        d = d.with_overrides({cfg.factor: d[cfg.factor] * (1.0 + float(cfg.level))})
+        level = _level(cfg)
+        try:
+            nominal = d[cfg.factor]
+        except KeyError as e:
+            raise UserError(f"factor={cfg.factor}: {e.args[0]}") from None
+        if not isinstance(nominal, float):
+            raise UserError(f"factor={cfg.factor}: not a scalar parameter; expected a key like piston_intake.a")
+        d = d.with_overrides({cfg.factor: nominal * (1.0 + level)}, source=f"factor={cfg.factor} level={level}")
     return d
 
 
-def sweep_dir(cfg: DictConfig, root: Path = ROOT) -> Path:
-    """results_dir/<sweep> (results_dir relative to the repository root unless absolute)."""
-    return root / cfg.results_dir / cfg.sweep
+def sweep_dir(cfg: DictConfig, root: Path | None = None) -> Path:
+    """results_dir/<sweep> (results_dir relative to the project root unless absolute)."""
+    return _root(cfg, root) / cfg.results_dir / cfg.sweep
 
 
-def run_variant(cfg: DictConfig, root: Path = ROOT) -> Path:
+def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
     """Run the standard tests for one variant; write artifacts atomically;
     skip if complete; record (not raise) a failure."""
+    root = _root(cfg, root)
     name = job_name(cfg)
     out = sweep_dir(cfg, root) / name
     h = config_hash(cfg)
@@ -101,6 +149,7 @@ def run_variant(cfg: DictConfig, root: Path = ROOT) -> Path:
         if cfg.get("fail_on") and cfg.fail_on == name:  # deliberate failure, for tests of the sweep machinery
             raise RuntimeError(f"deliberate failure of {name} (fail_on)")
         d = design_for(cfg, root)
+        check_current(cfg.variant.current, d, str(root / "conf" / "variant" / f"{cfg.variant.case}.yaml"))
         resolved = OmegaConf.to_container(cfg, resolve=True)
         resolved.pop("hydra", None)
         meta = {"config": resolved, "config_hash": h, "design_hash": d.hash(), "variant": name,
@@ -131,9 +180,9 @@ def run_variant(cfg: DictConfig, root: Path = ROOT) -> Path:
         log.info("%s: done", name)
     except Exception as e:  # a failed variant is reported and does not stop the sweep
         (out / COMPLETE).unlink(missing_ok=True)
-        (out / FAILED).write_text(json.dumps({"error": f"{type(e).__name__}: {e}", "traceback": traceback.format_exc(),
-                                              "config_hash": h}))
-        log.error("%s: FAILED: %s", name, e)
+        msg = one_line(e) if isinstance(e, UserError) else f"{type(e).__name__}: {one_line(e)}"
+        (out / FAILED).write_text(json.dumps({"error": msg, "traceback": traceback.format_exc(), "config_hash": h}))
+        log.error("%s: FAILED: %s", name, msg)
     return out
 
 
@@ -147,7 +196,8 @@ def summarize(sweep_dir: Path) -> pd.DataFrame:
             df = pd.read_parquet(v / "kpis.parquet")  # a KPI table, not a time series
             rows.append({**df.iloc[0].to_dict(), "status": "ok"})
         elif (v / FAILED).is_file():
-            rows.append({"variant": v.name, "status": "failed: " + json.loads((v / FAILED).read_text())["error"]})
+            err = json.loads((v / FAILED).read_text()).get("error", "unknown error")
+            rows.append({"variant": v.name, "status": "failed: " + _cell(err)})
     tab = pd.DataFrame(rows)
     if tab.empty:
         return tab
@@ -170,6 +220,11 @@ def summarize(sweep_dir: Path) -> pd.DataFrame:
     write_frame(sweep_dir / "summary.parquet", tab.fillna({"factor": ""}), meta)
     (sweep_dir / "summary.md").write_text(f"# Sweep {sweep_dir.name}\n\n" + kpi.to_markdown(tab, digits=2))
     return tab
+
+
+def _cell(text: str) -> str:
+    """Text safe in one markdown table cell: one line, no column separator."""
+    return " ".join(str(text).split()).replace("|", "/")
 
 
 def trend_agreement(tab: pd.DataFrame) -> tuple[int, int]:
@@ -195,18 +250,48 @@ try:  # the Hydra callback that writes the summary when a multirun ends
                 tab = summarize(d)
                 failed = int((tab.status != "ok").sum()) if len(tab) else 0
                 log.info("summary: %s (%d variants, %d failed)", d / "summary.md", len(tab), failed)
+                _OUTCOME["all_failed"] = len(tab) > 0 and failed == len(tab)
 except ImportError:  # pragma: no cover
     pass
 
 
+_OUTCOME = {"all_failed": False}
+
+
 def _main() -> None:
+    """``python -m dampertwin.sweep [--root DIR] [hydra args]``: the project
+    root is --root, $DAMPERTWIN_ROOT or the repository around the working
+    directory. Exit 1 if every variant failed, 2 for a bad root."""
     import hydra
 
-    @hydra.main(config_path=str(ROOT / "conf"), config_name="sweep", version_base="1.3")
+    argv = sys.argv[1:]
+    root_arg = None
+    if "--root" in argv:
+        i = argv.index("--root")
+        if i + 1 >= len(argv):
+            print("dampertwin.sweep: error: --root needs a folder", file=sys.stderr)
+            sys.exit(2)
+        root_arg = argv[i + 1]
+        del argv[i:i + 2]
+    try:
+        root = project_root(root_arg)
+    except UserError as e:
+        print(f"dampertwin.sweep: error: {one_line(e)}", file=sys.stderr)
+        sys.exit(2)
+    if not any(a.startswith("root=") for a in argv):
+        argv.append(f"root='{root}'" if "'" not in str(root) else f'root="{root}"')
+    sys.argv = [sys.argv[0], *argv]
+
+    @hydra.main(config_path=str(root / "conf"), config_name="sweep", version_base="1.3")
     def app(cfg: DictConfig) -> None:
         run_variant(cfg)
 
     app()
+    from dampertwin import sweep as this  # the callback's module (this file runs as __main__)
+
+    if this._OUTCOME["all_failed"]:
+        log.error("every variant of the sweep failed")
+        sys.exit(1)
 
 
 if __name__ == "__main__":

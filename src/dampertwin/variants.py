@@ -3,18 +3,31 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
-
-from .design import Design, yaml_load
+from .design import ConfigTextError, Design, yaml_load_file
+from .errors import UserError
 
 VARIANT_KEYS = ("case", "row", "title", "current", "overrides")
 
 
-class VariantError(ValueError):
-    pass
+class VariantError(UserError):
+    """A design-case (variant) file is invalid; the message names the file."""
+
+
+def check_current(current, design: Design, where: str) -> float:
+    """The active-valve current [A] as a float inside the design's P/Q map
+    range (never clamped silently); VariantError naming ``where`` otherwise."""
+    lo, hi = float(design.pq_map.currents[0]), float(design.pq_map.currents[-1])
+    if not isinstance(current, (int, float)) or isinstance(current, bool) or not math.isfinite(current):
+        raise VariantError(f"{where}: current {current!r}; expected a finite number in A within the "
+                           f"active-valve map [{lo:g}, {hi:g}] A")
+    if not lo - 1e-12 <= current <= hi + 1e-12:
+        raise VariantError(f"{where}: current {current!r} A outside the active-valve map [{lo:g}, {hi:g}] A "
+                           f"(it would be clamped); expected a current the map covers")
+    return float(current)
 
 
 @dataclass(frozen=True)
@@ -24,17 +37,22 @@ class Variant:
     title: str
     current: float
     overrides: dict = field(default_factory=dict)
+    path: str = field(default="<variant>", compare=False)
 
     def apply(self, design: Design) -> Design:
-        return design.with_overrides(self.overrides) if self.overrides else design
+        """The design with this case's overrides; errors name the variant
+        file; the current must lie in the (resulting) design's P/Q map."""
+        d = design.with_overrides(self.overrides, source=self.path) if self.overrides else design
+        check_current(self.current, d, self.path)
+        return d
 
 
 def load_variant(path: str | Path) -> Variant:
     path = Path(path)
     try:
-        doc = yaml_load(path.read_text())
-    except (OSError, yaml.YAMLError) as e:
-        raise VariantError(f"{path}: cannot read variant: {e}") from None
+        doc = yaml_load_file(path)
+    except ConfigTextError as e:
+        raise VariantError(str(e)) from None
     errors = []
     if not isinstance(doc, dict):
         raise VariantError(f"{path}: expected a mapping with keys {', '.join(VARIANT_KEYS)}")
@@ -45,13 +63,19 @@ def load_variant(path: str | Path) -> Variant:
         if k not in VARIANT_KEYS:
             errors.append(f"{path}: unknown key {k!r}; expected {', '.join(VARIANT_KEYS)}")
     cur = doc.get("current")
-    if not isinstance(cur, (int, float)) or isinstance(cur, bool) or not cur > 0:
-        errors.append(f"{path}: current {cur!r}; expected a positive number in A")
-    if not isinstance(doc.get("overrides", {}), dict):
+    if not isinstance(cur, (int, float)) or isinstance(cur, bool) or not math.isfinite(cur) or not cur > 0:
+        errors.append(f"{path}: current {cur!r}; expected a positive finite number in A")
+    row = doc.get("row")
+    if "row" in doc and (not isinstance(row, int) or isinstance(row, bool) or row < 1):
+        errors.append(f"{path}: row {row!r}; expected a positive integer (the row of thesis table 6.5)")
+    for k in ("case", "title"):
+        if k in doc and (not isinstance(doc[k], str) or not doc[k]):
+            errors.append(f"{path}: {k} {doc[k]!r}; expected a non-empty string")
+    if not isinstance(doc.get("overrides", {}), (dict, type(None))):
         errors.append(f"{path}: overrides must be a mapping of parameter -> value")
     if errors:
-        raise VariantError("\n".join(errors))
-    return Variant(str(doc["case"]), int(doc["row"]), str(doc["title"]), float(cur), dict(doc["overrides"] or {}))
+        raise VariantError(errors)
+    return Variant(doc["case"], row, doc["title"], float(cur), dict(doc["overrides"] or {}), str(path))
 
 
 def load_variants(folder: str | Path) -> list[Variant]:

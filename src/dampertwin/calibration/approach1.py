@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..design import Design
+from ..design import Design, DesignError
+from ..errors import UserError
 from ..excitation import Excitation
 from ..io import runs
 from ..sensors import sensor_lowpass
@@ -40,27 +41,27 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
     """Search space: each item names a parameter and either absolute
     ``bounds`` or a ``window`` of factors on the nominal value; windows are
     clipped to the design's calibration bounds (thesis tables 6.1 / 6.4).
-    A bad item raises ValueError naming ``where`` and the item."""
+    A bad item raises UserError (a ValueError) naming ``where`` and the item."""
     specs = []
     if not isinstance(items, list) or not items:
-        raise ValueError(f"{where}: expected a non-empty list of parameters to fit")
+        raise UserError(f"{where}: expected a non-empty list of parameters to fit")
     for i, it in enumerate(items):
         label = f"{where}: item {i} ({it!r})"
         if not isinstance(it, dict) or ("name" not in it and "key" not in it):
-            raise ValueError(f"{label}: needs 'name' (within the group) or 'key' (group.name)")
+            raise UserError(f"{label}: needs 'name' (within the group) or 'key' (group.name)")
         if ("bounds" in it) == ("window" in it):
-            raise ValueError(f"{label}: give exactly one of 'bounds: [lo, hi]' or 'window: [f_lo, f_hi]'")
+            raise UserError(f"{label}: give exactly one of 'bounds: [lo, hi]' or 'window: [f_lo, f_hi]'")
         if it.get("scale", "lin") not in ("lin", "log"):
-            raise ValueError(f"{label}: scale must be 'lin' or 'log'")
+            raise UserError(f"{label}: scale must be 'lin' or 'log'")
         key = prefix + it["name"] if "name" in it else it["key"]
         try:
             value = design[key]
             p = design.param(key) if not key.startswith("constants.") else None
         except KeyError as e:
-            raise ValueError(f"{label}: unknown design parameter {key!r}: {e}") from None
+            raise UserError(f"{label}: unknown design parameter {key!r}: {e}") from None
         rng = it.get("bounds", it.get("window"))
         if not (isinstance(rng, list) and len(rng) == 2 and all(isinstance(x, (int, float)) for x in rng)):
-            raise ValueError(f"{label}: bounds / window must be two numbers")
+            raise UserError(f"{label}: bounds / window must be two numbers")
         if "bounds" in it:
             lo, hi = map(float, rng)
         else:
@@ -69,30 +70,71 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
             if p is not None and p.bounds is not None:
                 lo, hi = max(lo, p.bounds[0]), min(hi, p.bounds[1])
         if not lo < hi:
-            raise ValueError(f"{label}: empty search interval for {key}: [{lo}, {hi}]")
+            raise UserError(f"{label}: empty search interval for {key}: [{lo}, {hi}]")
         if it.get("scale") == "log" and lo <= 0:
-            raise ValueError(f"{label}: a log scale needs a positive lower bound, got {lo}")
+            raise UserError(f"{label}: a log scale needs a positive lower bound, got {lo}")
         specs.append(ParamSpec(key, lo, hi, it.get("scale", "lin")))
     return specs
 
 
-def _batch_objective(design: Design, specs, cases, configuration: str, channel, **sim_kw):
-    """A batch objective over several records: sum of eq. 6.x integrals."""
+def _batch_objective(design: Design, specs, cases, configuration: str, channel, max_wall_s: float | None = None,
+                     **sim_kw):
+    """A batch objective over several records: sum of eq. 6.x integrals.
+    Returns (values, reasons): a member whose design is invalid, whose
+    simulation raises, stops early or yields non-finite output is NaN with
+    its reason; the rest of the population is scored. Each simulate_batch
+    call is capped at ``max_wall_s`` [s] (profile config)."""
     keys = [s.key for s in specs]
 
-    def f(X: np.ndarray) -> np.ndarray:
-        designs = [design.with_overrides(dict(zip(keys, row))) for row in X]
-        J = np.zeros(len(designs))
+    def f(X: np.ndarray):
+        n = len(X)
+        designs: list = [None] * n
+        reasons: list = [None] * n
+        for i, row in enumerate(X):
+            try:
+                designs[i] = design.with_overrides(dict(zip(keys, map(float, row))))
+            except DesignError as e:
+                reasons[i] = "invalid design: " + "; ".join(e.errors)
+        J = np.zeros(n)
         for t, measured, ex, extra in cases:
-            _, ch, status = simulate_batch(designs, ex, configuration, rate=1.0 / (t[1] - t[0]),
-                                           duration=t[-1] - t[0], channels=list(channel.sources), **sim_kw, **extra)
-            sim = channel(ch)
-            for i in range(len(designs)):
-                j = integral_abs_error(t, measured, sim[i][: len(t)]) if status[i] == 0 else float("nan")
-                J[i] += j
-        return J
+            live = [i for i in range(n) if reasons[i] is None]
+            if not live:
+                break
+            sims = _simulate_members([designs[i] for i in live], ex, configuration, t, channel, max_wall_s,
+                                     {**sim_kw, **extra})
+            for i, (sim, why) in zip(live, sims):
+                if why is None and len(sim) != len(t):
+                    raise ValueError(f"simulated record has {len(sim)} samples, the measured one {len(t)}: "
+                                     f"the simulation must cover the whole record (no truncation)")
+                if why is None and not np.all(np.isfinite(sim)):
+                    why = "simulation output not finite"
+                if why is not None:
+                    reasons[i] = why
+                    continue
+                J[i] += integral_abs_error(t, measured, sim)
+        J[[i for i in range(n) if reasons[i] is not None]] = np.nan
+        return J, reasons
 
     return f
+
+
+def _simulate_members(designs, ex, configuration, t, channel, max_wall_s, kw) -> list[tuple]:
+    """[(simulated channel, failure reason or None)] per design. One batch
+    call; if it raises (one bad member must not lose the population), each
+    member is run alone and the one that raises is marked with its error."""
+    rate = 1.0 / (t[1] - t[0])
+    if int(round((t[-1] - t[0]) * rate)) + 1 != len(t):  # jittered clock: the mean rate gives the record's length
+        rate = (len(t) - 1) / (t[-1] - t[0])
+    call = dict(rate=rate, duration=t[-1] - t[0], channels=list(channel.sources), max_wall_s=max_wall_s, **kw)
+    try:
+        _, ch, status = simulate_batch(designs, ex, configuration, **call)
+        sim = channel(ch)
+        return [(sim[i], None if status[i] == 0 else f"simulation stopped (status {int(status[i])}: "
+                 f"step, wall-time ({max_wall_s} s) or solver failure)") for i in range(len(designs))]
+    except Exception as e:  # noqa: BLE001 - isolate the failing member below
+        if len(designs) == 1:  # a member's failure is its reason, not the end of the fit
+            return [(None, f"simulation raised {type(e).__name__}: {' '.join(str(e).split())[:200]}")]
+    return [m for d in designs for m in _simulate_members([d], ex, configuration, t, channel, max_wall_s, kw)]
 
 
 class _Channel:
@@ -113,6 +155,20 @@ def _context(design: Design, measured: pd.DataFrame) -> str:
     return h.hexdigest()[:16]
 
 
+def _run_of(measured: pd.DataFrame, run: str, where: str) -> pd.DataFrame:
+    """The record of one run label; UserError listing the labels present."""
+    rs = dict(runs(measured))
+    if run not in rs:
+        raise UserError(f"{where}: no run {run!r} in the measured record; runs present: {', '.join(map(str, rs))}")
+    return rs[run]
+
+
+def _need(cal: dict, key: str, where: str):
+    if not isinstance(cal, dict) or key not in cal:
+        raise UserError(f"{where}: missing key {key!r}")
+    return cal[key]
+
+
 def _record_input(df: pd.DataFrame, column: str, kind: str, cutoff: float):
     t = df["time [s]"].to_numpy()
     t = t - t[0]
@@ -127,10 +183,10 @@ def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, set
                               where=f"conf/calibration/valves.yaml: {kind}")
     cases = []
     for _, g in runs(measured):
-        t, ex = _record_input(g, "flow [m^3/s]", "flow", cal["input_cutoff"])
+        t, ex = _record_input(g, "flow [m^3/s]", "flow", _need(cal, "input_cutoff", "conf/calibration/valves.yaml"))
         cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
     ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
-    f = _batch_objective(design, specs, cases, "valve", ch, bench=bench)
+    f = _batch_objective(design, specs, cases, "valve", ch, settings.max_wall_s, bench=bench)
     x0 = {s.key: design[s.key] for s in specs}
     return run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
                   label=f"valve {valve}", progress=progress, context=_context(design, measured))
@@ -153,10 +209,11 @@ def fit_compliance(design: Design, measured: pd.DataFrame, cal: dict, settings: 
     specs = specs_from_config(design, cal.get("parameters"), where="conf/calibration/compliance.yaml: parameters")
     cases = []
     for _, g in runs(measured):
-        t, ex = _record_input(g, "displacement [m]", "displacement", cal["input_cutoff"])
+        t, ex = _record_input(g, "displacement [m]", "displacement",
+                              _need(cal, "input_cutoff", "conf/calibration/compliance.yaml"))
         cases.append((t, g["force [N]"].to_numpy(), ex, {"current": float(g["current [A]"].iloc[0])}))
     ch = _through_sensor("rod force [N]", force_bandwidth, 1.0 / (cases[0][0][1] - cases[0][0][0]))
-    f = _batch_objective(design, specs, cases, "damper", ch)
+    f = _batch_objective(design, specs, cases, "damper", ch, settings.max_wall_s)
     x0 = {s.key: design[s.key] for s in specs}
     return run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
                   label="compliance", progress=progress, context=_context(design, measured))
@@ -165,7 +222,7 @@ def fit_compliance(design: Design, measured: pd.DataFrame, cal: dict, settings: 
 def fit_static_curve(measured: pd.DataFrame, run: str, order: int = 5) -> list[float]:
     """Least-squares static load-deflection polynomial F = sum c_k X^k,
     k = 1..order (no constant), from a quasi-static record (thesis 7.2)."""
-    g = dict(runs(measured))[run]
+    g = _run_of(measured, run, "static curve")
     X = g["displacement [m]"].to_numpy()
     F = g["force [N]"].to_numpy()
     s = np.max(np.abs(X))
@@ -183,23 +240,26 @@ def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: G
     holds relaxation forces); otherwise the nominal curve stays. The fit thus
     never ends worse than the uncalibrated design. Returns (result, static
     curve coefficients, which curve was kept)."""
-    ls_coef = fit_static_curve(measured, cal["static"]["run"], cal["static"]["order"])
+    where = "conf/calibration/topmount.yaml"
+    static = _need(cal, "static", where)
+    ls_coef = fit_static_curve(measured, _need(static, "run", where + ": static"),
+                               _need(static, "order", where + ": static"))
     specs = specs_from_config(design, cal.get("parameters"), prefix="top_mount.",
                               where="conf/calibration/topmount.yaml: parameters")
-    g = dict(runs(measured))[cal["dynamic_run"]]
-    t, ex = _record_input(g, "displacement [m]", "displacement", cal["input_cutoff"])
+    g = _run_of(measured, _need(cal, "dynamic_run", where), where + ": dynamic_run")
+    t, ex = _record_input(g, "displacement [m]", "displacement", _need(cal, "input_cutoff", where))
     cases = [(t, g["force [N]"].to_numpy(), ex, {})]
     ch = _through_sensor("top mount force [N]", force_bandwidth, 1.0 / (t[1] - t[0]))
     x0 = {s.key: design[s.key] for s in specs}
     row0 = np.array([[x0[s.key] for s in specs]])
     d_ls = design.with_overrides({"top_mount.F_LD": ls_coef})
-    j_nominal = float(_batch_objective(design, specs, cases, "topmount", ch)(row0)[0])
-    j_ls = float(_batch_objective(d_ls, specs, cases, "topmount", ch)(row0)[0])
+    j_nominal = float(_batch_objective(design, specs, cases, "topmount", ch, settings.max_wall_s)(row0)[0][0])
+    j_ls = float(_batch_objective(d_ls, specs, cases, "topmount", ch, settings.max_wall_s)(row0)[0][0])
     if j_ls <= j_nominal:
         d, coef, kept = d_ls, ls_coef, "least squares (thesis 7.2)"
     else:
         d, coef, kept = design, list(design["top_mount.F_LD"]), "nominal (least squares raised eq. 6.3)"
-    f = _batch_objective(d, specs, cases, "topmount", ch)
+    f = _batch_objective(d, specs, cases, "topmount", ch, settings.max_wall_s)
     res = run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
                  label="top mount", progress=progress, context=_context(design, measured))
     res.start_objective = j_nominal  # "before" = the uncalibrated design: nominal curve and dynamics

@@ -17,14 +17,20 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import pandas as pd
 
+from ..errors import UserError
+
 INFEASIBLE = 1e30  # objective of a failed simulation
+
+
+class FitError(UserError):
+    """A fit that cannot produce a result (every member infeasible)."""
 NEAR_SPREAD = 0.1  # gene-space std of the initial members placed around the nominal design
 
 
@@ -59,11 +65,17 @@ class GASettings:
     generations: int
     mutation_probability: float
     elitism: int = 1
+    max_wall_s: float | None = None  # wall-time cap [s] of one population's simulations
 
     @classmethod
     def from_config(cls, c) -> "GASettings":
+        wall = c.get("max_wall_s")
+        if wall is None or isinstance(wall, bool) or not isinstance(wall, (int, float)) or not wall > 0:
+            raise UserError(f"GA settings {dict(c)}: max_wall_s {wall!r}; expected a positive wall-time cap [s] "
+                            f"for one population's simulations (conf/profile/*.yaml)")
         return cls(int(c["population"]), float(c["reproduction_ratio"]), int(c["generations"]),
-                   float(c["mutation_probability"]), int(c.get("elitism", 1)))
+                   float(c["mutation_probability"]), int(c.get("elitism", 1)),
+                   None if wall is None else float(wall))
 
 
 @dataclass
@@ -74,12 +86,26 @@ class FitResult:
     history: pd.DataFrame
     failed: int
     evaluations: int
+    failures: dict = field(default_factory=dict)  # reason -> count of infeasible members
+
+
+def split_scores(r, n: int) -> tuple[np.ndarray, list]:
+    """An objective's return value -> (values, reasons). A batch objective
+    may return the values alone or ``(values, reasons)`` where reasons[i]
+    says why member i failed (None if it did not)."""
+    if isinstance(r, tuple) and len(r) == 2:
+        J, reasons = np.asarray(r[0], float), list(r[1])
+    else:
+        J, reasons = np.asarray(r, float), [None] * n
+    if J.shape != (n,) or len(reasons) != n:
+        raise ValueError(f"batch objective returned {J.shape} values for {n} members")
+    return J, [why if why or np.isfinite(j) else "non-finite objective" for j, why in zip(J, reasons)]
 
 
 class Evaluator:
-    """Evaluates a batch of parameter rows -> objective values (NaN = failed).
-    Local by default; with a Dask scheduler address the same batches are
-    split into chunks and mapped on the cluster."""
+    """Evaluates a batch of parameter rows -> (objective values, failure
+    reasons); NaN = failed. Local by default; with a Dask scheduler address
+    the same batches are split into chunks and mapped on the cluster."""
 
     def __init__(self, batch_objective: Callable[[np.ndarray], np.ndarray], scheduler: str | None = None,
                  chunks: int = 4):
@@ -88,9 +114,9 @@ class Evaluator:
         self.chunks = chunks
         self._client = None
 
-    def __call__(self, X: np.ndarray) -> np.ndarray:
+    def __call__(self, X: np.ndarray) -> tuple[np.ndarray, list]:
         if not self.scheduler:
-            return np.asarray(self.f(X), float)
+            return split_scores(self.f(X), len(X))
         if self._client is None:
             try:
                 from dask.distributed import Client
@@ -100,7 +126,8 @@ class Evaluator:
             self._client = Client(self.scheduler)
         parts = np.array_split(X, min(self.chunks, len(X)))
         futures = self._client.map(self.f, parts, pure=False)
-        return np.concatenate([np.asarray(r, float) for r in self._client.gather(futures)])
+        out = [split_scores(r, len(x)) for r, x in zip(self._client.gather(futures), parts)]
+        return np.concatenate([o[0] for o in out]), [w for o in out for w in o[1]]
 
 
 def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, seed: int, *,
@@ -116,6 +143,7 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
     k = len(specs)
     cache: dict[bytes, float] = {}
     counters = {"failed": 0, "evals": 0}
+    failures: dict[str, int] = {}
 
     def values(G: np.ndarray) -> np.ndarray:
         return np.column_stack([s.to_value(G[:, j]) for j, s in enumerate(specs)])
@@ -125,10 +153,12 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
         keys = [g.tobytes() for g in G]
         todo = [i for i, key in enumerate(keys) if key not in cache]
         if todo:
-            J = evaluate(values(G[todo]))
-            for i, j in zip(todo, J):
+            J, reasons = evaluate(values(G[todo]))
+            for i, j, why in zip(todo, J, reasons):
                 bad = not np.isfinite(j)
                 counters["failed"] += bad
+                if bad:  # infeasible member: its reason is counted, the rest of the population is scored
+                    failures[str(why)] = failures.get(str(why), 0) + 1
                 cache[keys[i]] = INFEASIBLE if bad else float(j)
             counters["evals"] += len(todo)
         return np.array([cache[key] for key in keys])
@@ -158,6 +188,8 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
             for key, j in zip(z["cache_keys"], z["cache_vals"]):
                 cache[bytes(key)] = float(j)
             counters["failed"], counters["evals"] = int(z["failed"]), int(z["evals"])
+            if "failures" in z:
+                failures.update(json.loads(str(z["failures"])))
     parents = max(2, int(round(settings.population * settings.reproduction_ratio / 100.0)))
     bar = tqdm(total=settings.generations, initial=start_gen, desc=label, disable=not progress, leave=False)
     for gen in range(start_gen, settings.generations):
@@ -174,7 +206,7 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
         ga.run()
         pop = np.asarray(ga.population, float)
         if ck:
-            _save(ck, pop, gen + 1, rows, cache, counters, sig)
+            _save(ck, pop, gen + 1, rows, cache, counters, sig, failures)
         bar.update(1)
     bar.close()
     J = objective(pop)
@@ -185,13 +217,18 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
     gb = np.frombuffer(best_key, dtype=float)
     best = {s.key: float(s.to_value(gb[j])) for j, s in enumerate(specs)}
     start = float(objective(g0[None, :])[0]) if g0 is not None else float("nan")
-    return FitResult(best, cache[best_key], start, pd.DataFrame(rows), counters["failed"], counters["evals"])
+    if cache[best_key] >= INFEASIBLE:
+        raise FitError(f"{label}: every simulation of the fit failed ({counters['evals']} evaluations); "
+                           f"reasons: {failures}")
+    return FitResult(best, cache[best_key], start, pd.DataFrame(rows), counters["failed"], counters["evals"],
+                     dict(failures))
 
 
-def _save(path: Path, pop, gen, rows, cache, counters, sig):
+def _save(path: Path, pop, gen, rows, cache, counters, sig, failures=None):
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.npz")
     keys = np.array([np.frombuffer(k, dtype=np.uint8) for k in cache]) if cache else np.zeros((0, 0), np.uint8)
     np.savez(tmp, pop=pop, gen=gen, history=json.dumps(rows), cache_keys=keys,
-             cache_vals=np.array(list(cache.values())), failed=counters["failed"], evals=counters["evals"], sig=sig)
+             cache_vals=np.array(list(cache.values())), failed=counters["failed"], evals=counters["evals"], sig=sig,
+             failures=json.dumps(failures or {}, sort_keys=True))
     os.replace(tmp, path)

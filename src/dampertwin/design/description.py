@@ -24,13 +24,17 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
+from ..errors import UserError
 from .schema import (
     BY_NUMBER,
     CONSTANT_TYPES,
     CONSTANTS,
     EFFECTS,
     MAP_COLUMNS,
+    ORDERED,
     PARAMETERS,
+    POSITIVE_SUMS,
+    RANGES,
     SI_UNITS,
     TYPES,
 )
@@ -40,13 +44,13 @@ CONST_FIELDS = ("name", "symbol", "description", "type", "value", "unit", "sourc
 TOP_KEYS = ("design", "description", "parameters", "constants", "effects")
 
 
-class DesignError(ValueError):
+class DesignError(UserError):
     """A design description is invalid; ``errors`` lists every problem."""
 
     def __init__(self, errors: list[str]):
         self.errors = list(errors)
         n = len(self.errors)
-        super().__init__(f"{n} problem{'s' * (n != 1)} in design description:\n  - " + "\n  - ".join(self.errors))
+        ValueError.__init__(self, f"{n} problem{'s' * (n != 1)} in design description:\n  - " + "\n  - ".join(self.errors))
 
 
 # --- YAML: accept 1e-6 as a float (YAML 1.2), which PyYAML reads as a string.
@@ -73,10 +77,80 @@ _Loader.add_implicit_resolver(
 )
 
 
+def _construct_mapping_unique(loader, node, deep=False):
+    """A mapping whose keys are unique: a second ``value:`` in one entry is an
+    error naming the key and both lines, never "last one wins"."""
+    seen: dict = {}
+    for key_node, _ in node.value:
+        if key_node.tag == "tag:yaml.org,2002:merge":
+            continue
+        key = loader.construct_object(key_node, deep=True)
+        try:
+            first = seen.get(key)
+        except TypeError:  # unhashable key: the base constructor reports it
+            continue
+        if first is not None:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key {key!r} (first at line {first.line + 1})", key_node.start_mark)
+        seen[key] = key_node.start_mark
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+_Loader.construct_mapping = _construct_mapping_unique  # type: ignore[method-assign]
+
+
 def yaml_load(text: str):
     """YAML with 1.2 numbers and booleans (``1e-6`` is a float, ``no`` a
-    string); used for every config file of the project."""
+    string) and unique mapping keys; used for every config file of the project."""
     return yaml.load(text, Loader=_Loader)
+
+
+def yaml_error_line(e: Exception) -> str:
+    """One line for a YAML error: 'line N: problem' (no echo of the file)."""
+    mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
+    problem = getattr(e, "problem", None) or getattr(e, "context", None) or type(e).__name__
+    return f"line {mark.line + 1}, column {mark.column + 1}: {problem}" if mark is not None else str(problem)
+
+
+MAX_CONFIG_BYTES = 5 * 1024 * 1024  # design / variant / config files larger than this are refused
+
+
+class ConfigTextError(UserError):
+    """A config file that is not readable UTF-8 text (message names the file)."""
+
+
+def read_config_text(path: str | os.PathLike, max_bytes: int = MAX_CONFIG_BYTES) -> str:
+    """The text of a small UTF-8 config file; ConfigTextError naming the file
+    if it is missing, too large, binary or not UTF-8."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > max_bytes:
+            raise ConfigTextError(f"{path}: file is {size / 1e6:.1f} MB; expected a text file of at most "
+                                  f"{max_bytes / 1e6:.0f} MB")
+        data = path.read_bytes()
+    except OSError as e:
+        raise ConfigTextError(f"{path}: cannot read: {e.strerror or e}") from None
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        raise ConfigTextError(f"{path}: binary file (NUL byte at offset {nul}); expected UTF-8 YAML text")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ConfigTextError(f"{path}: not UTF-8 text (byte 0x{data[e.start]:02x} at offset {e.start}); "
+                              f"expected UTF-8 YAML text") from None
+
+
+def yaml_load_file(path: str | os.PathLike, max_bytes: int = MAX_CONFIG_BYTES):
+    """Read a YAML config file; ConfigTextError naming the file (and the line)
+    for unreadable text or invalid YAML (duplicate keys included)."""
+    text = read_config_text(path, max_bytes)
+    try:
+        return yaml.load(text, Loader=_Loader)
+    except yaml.YAMLError as e:
+        raise ConfigTextError(f"{path}: not valid YAML: {yaml_error_line(e)}") from None
+    except RecursionError:
+        raise ConfigTextError(f"{path}: YAML nested too deeply") from None
 
 
 class _Dumper(yaml.SafeDumper):
@@ -158,6 +232,7 @@ class Design:
     effects: Mapping[str, bool]
     pq_map: PQMap
     path: Path | None = field(default=None, compare=False)
+    map_dirs: tuple = field(default=(), compare=False)  # extra folders the P/Q map may live in
 
     # ---- access -----------------------------------------------------------
     def param(self, key: int | str) -> Parameter:
@@ -205,14 +280,18 @@ class Design:
     __hash__ = None  # type: ignore[assignment]
 
     # ---- variants ---------------------------------------------------------
-    def with_overrides(self, overrides: Mapping[Any, Any]) -> "Design":
+    def with_overrides(self, overrides: Mapping[Any, Any], source: str | os.PathLike | None = None) -> "Design":
         """A new validated design with some values replaced.
 
         Keys: a number, ``"group.name"``, a unique bare name,
         ``"constants.NAME"`` or ``"effects.NAME"``. A string value for no. 52
         names another P/Q map file (relative to this design's folder).
+        ``source`` (e.g. the variant file) is named in every error.
         """
-        where = str(self.path) if self.path else "<overrides>"
+        base = str(self.path) if self.path else "<design>"
+        where = f"{source} (overrides of {base})" if source is not None else (str(self.path) if self.path else "<overrides>")
+        if not isinstance(overrides, Mapping):
+            raise DesignError([f"{where}: overrides must be a mapping of parameter -> value, got {type(overrides).__name__}"])
         doc = self._doc(self.path.parent if self.path else None)
         errors: list[str] = []
         pindex = {p["no"]: p for p in doc["parameters"]}
@@ -242,7 +321,8 @@ class Design:
             raise DesignError(errors)
         keep_map = not any(_is_map_key(k) for k in overrides)
         return _from_doc(doc, self.path, base_dir=self.path.parent if self.path else Path.cwd(),
-                         known_map=self.pq_map if keep_map else None)
+                         known_map=self.pq_map if keep_map else None, where=where if source is not None else None,
+                         map_dirs=self.map_dirs)
 
     # ---- output -----------------------------------------------------------
     def _doc(self, rel_to: Path | None) -> dict:
@@ -346,25 +426,34 @@ def _resolve_name(key: str) -> int | None:
 
 
 # ---------------------------------------------------------------- loading
-def load(path: str | os.PathLike) -> Design:
-    """Read and validate a design YAML file (raises DesignError)."""
+def _env_map_dirs() -> tuple[Path, ...]:
+    return tuple(Path(p) for p in os.environ.get("DAMPERTWIN_MAP_DIRS", "").split(os.pathsep) if p)
+
+
+def load(path: str | os.PathLike, *, map_dirs: tuple | list = ()) -> Design:
+    """Read and validate a design YAML file (raises DesignError). The P/Q
+    map must lie in the design's folder, in one of ``map_dirs`` or in a
+    folder of the environment variable DAMPERTWIN_MAP_DIRS."""
     path = Path(path)
     where = str(path)
     if not path.is_file():
         raise DesignError([f"{where}: file not found"])
     try:
-        doc = yaml.load(path.read_text(), Loader=_Loader)
-    except yaml.YAMLError as e:
-        raise DesignError([f"{where}: not valid YAML: {e}"]) from None
-    return _from_doc(doc, path, base_dir=path.parent)
+        doc = yaml_load_file(path)
+    except ConfigTextError as e:
+        raise DesignError([str(e)]) from None
+    return _from_doc(doc, path, base_dir=path.parent, map_dirs=tuple(Path(d) for d in map_dirs))
 
 
-def loads(text: str, base_dir: str | os.PathLike = ".", where: str = "<string>") -> Design:
+def loads(text: str, base_dir: str | os.PathLike = ".", where: str = "<string>", *,
+          map_dirs: tuple | list = ()) -> Design:
     try:
         doc = yaml.load(text, Loader=_Loader)
     except yaml.YAMLError as e:
-        raise DesignError([f"{where}: not valid YAML: {e}"]) from None
-    return _from_doc(doc, None, base_dir=Path(base_dir), where=where)
+        raise DesignError([f"{where}: not valid YAML: {yaml_error_line(e)}"]) from None
+    except RecursionError:
+        raise DesignError([f"{where}: YAML nested too deeply"]) from None
+    return _from_doc(doc, None, base_dir=Path(base_dir), where=where, map_dirs=tuple(Path(d) for d in map_dirs))
 
 
 def _is_num(v) -> bool:
@@ -379,7 +468,7 @@ def _is_map_key(key) -> bool:
 
 
 def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = None,
-              known_map: PQMap | None = None) -> Design:
+              known_map: PQMap | None = None, map_dirs: tuple = ()) -> Design:
     where = where or (str(path) if path else "<design>")
     errors: list[str] = []
     if not isinstance(doc, dict):
@@ -396,9 +485,11 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
         errors.append(f"{where}: 'description' must be a string")
         description = str(description)
 
-    params, pq_map = _parse_parameters(doc.get("parameters"), where, base_dir, errors, known_map)
+    params, pq_map = _parse_parameters(doc.get("parameters"), where, base_dir, errors, known_map,
+                                       (base_dir, *map_dirs, *_env_map_dirs()))
     constants = _parse_constants(doc.get("constants"), where, errors)
     effects = _parse_effects(doc.get("effects"), where, errors)
+    _check_physics(params, constants, where, errors)
     if errors:
         raise DesignError(errors)
     return Design(
@@ -409,10 +500,12 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
         effects=MappingProxyType(effects),
         pq_map=pq_map,
         path=path,
+        map_dirs=tuple(map_dirs),
     )
 
 
-def _parse_parameters(items, where, base_dir, errors, known_map=None) -> tuple[dict[int, Parameter], PQMap | None]:
+def _parse_parameters(items, where, base_dir, errors, known_map=None,
+                      allowed_dirs=()) -> tuple[dict[int, Parameter], PQMap | None]:
     out: dict[int, Parameter] = {}
     pq_map = None
     if not isinstance(items, list):
@@ -470,7 +563,14 @@ def _parse_parameters(items, where, base_dir, errors, known_map=None) -> tuple[d
                 errors.append(f"{label}: value must be the file name of the P/Q map CSV, got {value!r}")
             else:
                 map_path = Path(value) if os.path.isabs(value) else base_dir / value
-                pq_map = known_map if known_map is not None else _read_map(map_path, label, errors)
+                if known_map is not None:
+                    pq_map = known_map
+                elif _inside(map_path, allowed_dirs or (base_dir,)):
+                    pq_map = _read_map(map_path, label, errors)
+                else:
+                    errors.append(f"{label}: P/Q map {value!r} lies outside the design's folder {str(base_dir)!r}; "
+                                  f"expected a file name in that folder (other folders: load(..., map_dirs=[...]) "
+                                  f"or DAMPERTWIN_MAP_DIRS)")
         else:
             value = _check_value(value, spec, label, errors)
             bounds = _check_bounds(bounds, ptype, value, spec, label, errors)
@@ -538,6 +638,13 @@ def _check_bounds(bounds, ptype, value, spec, label, errors):
         if not a < b:
             errors.append(f"{label}: bounds lower {a!r} >= upper {b!r}")
             return None
+    rng = RANGES.get(f"{spec.group}.{spec.name}")
+    if rng is not None:
+        for end, b in (("lower", out[0]), ("upper", out[1])):
+            if not rng.contains(b):
+                errors.append(f"{label}: {end} bound {b!r} {spec.unit}; expected the physical range {rng.describe()} "
+                              f"(bounds [{out[0]!r}, {out[1]!r}] must lie inside it)")
+                return None
     if value is not None:
         vals = value if spec.kind == "vector" else (value,)
         for v, (a, b) in zip(vals, pairs):
@@ -609,29 +716,91 @@ def _parse_effects(eff, where, errors) -> dict[str, bool]:
     return {k: out[k] for k in EFFECTS if k in out}
 
 
+_KEY_NO = {f"{sp.group}.{sp.name}": sp.no for sp in PARAMETERS}
+
+
+def _label(key: str) -> str:
+    """'no. 3 (geometry.D_R)' or "constant 'P_atm'"."""
+    if key.startswith("constants."):
+        return f"constant {key.split('.', 1)[1]!r}"
+    return f"no. {_KEY_NO[key]} ({key})"
+
+
+def _check_physics(params: dict, constants: dict, where: str, errors: list[str]) -> None:
+    """Physical ranges, ordered pairs and positive sums of schema.RANGES /
+    ORDERED / POSITIVE_SUMS, on the entries that parsed."""
+    vals: dict[str, float] = {}
+    for no, p in params.items():
+        if BY_NUMBER[no].kind == "scalar" and isinstance(p.value, float):
+            vals[f"{p.group}.{p.name}"] = p.value
+    for c in constants.values():
+        vals[f"constants.{c.name}"] = c.value
+    bad = set()
+    for key, rng in RANGES.items():
+        if key in vals and not rng.contains(vals[key]):
+            errors.append(f"{where}: {_label(key)}: value {vals[key]!r}; expected {rng.describe()} {_unit(key)}")
+            bad.add(key)
+    for small, large, strict, why in ORDERED:
+        if small in vals and large in vals and not bad & {small, large}:
+            a, b = vals[small], vals[large]
+            if not (a < b if strict else a <= b):
+                errors.append(f"{where}: {_label(small)}: value {a!r}; expected {'<' if strict else '<='} "
+                              f"{_label(large)} = {b!r} {_unit(small)} ({why})")
+    for keys, why in POSITIVE_SUMS:
+        if all(k in vals for k in keys) and not bad & set(keys) and not sum(vals[k] for k in keys) > 0:
+            errors.append(f"{where}: {_label(keys[0])}: value {vals[keys[0]]!r}; expected "
+                          f"{' + '.join(_label(k) for k in keys)} > 0 ({why})")
+
+
+def _unit(key: str) -> str:
+    if key.startswith("constants."):
+        return CONSTANTS[key.split(".", 1)[1]]
+    return BY_NUMBER[_KEY_NO[key]].unit
+
+
+def _inside(path: Path, folders) -> bool:
+    """True if ``path`` (symlinks resolved) lies in one of ``folders``."""
+    try:
+        rp = path.resolve()
+    except (OSError, RuntimeError):
+        return False
+    for f in folders:
+        try:
+            rp.relative_to(Path(f).resolve())
+            return True
+        except (ValueError, OSError, RuntimeError):
+            continue
+    return False
+
+
 def _read_map(path: Path, label: str, errors: list[str]) -> PQMap | None:
     """Read and check the active-valve P/Q map CSV (tidy: current, dp, flow)."""
     if not path.is_file():
         errors.append(f"{label}: P/Q map file {str(path)!r} not found")
         return None
     n0 = len(errors)
+    # never echo the file's content: a wrong path may point at anything
     try:
-        rows = list(csv.reader(io.StringIO(path.read_text())))
-    except (OSError, UnicodeDecodeError) as e:
-        errors.append(f"{label}: cannot read P/Q map {str(path)!r}: {e}")
+        text = read_config_text(path)
+        rows = list(csv.reader(io.StringIO(text)))
+    except (ConfigTextError, csv.Error) as e:
+        msg = str(e).split(": ", 1)[-1] if isinstance(e, ConfigTextError) else "not a CSV file"
+        errors.append(f"{label}: cannot read P/Q map {str(path)!r}: {msg}")
         return None
     if not rows or tuple(c.strip() for c in rows[0]) != MAP_COLUMNS:
-        errors.append(f"{label}: P/Q map {str(path)!r} header {rows[0] if rows else []}; expected columns {list(MAP_COLUMNS)}")
+        errors.append(f"{label}: P/Q map {str(path)!r}: first line is not the expected header; "
+                      f"expected columns {list(MAP_COLUMNS)}")
         return None
     data = []
     for i, r in enumerate(rows[1:], start=2):
         try:
             vals = [float(x) for x in r]
         except ValueError:
-            errors.append(f"{label}: P/Q map {str(path)!r} line {i}: non-numeric entry {r}")
+            errors.append(f"{label}: P/Q map {str(path)!r} line {i}: non-numeric entry; expected 3 numbers")
             continue
         if len(vals) != 3 or not all(math.isfinite(x) for x in vals):
-            errors.append(f"{label}: P/Q map {str(path)!r} line {i}: expected 3 finite numbers, got {r}")
+            errors.append(f"{label}: P/Q map {str(path)!r} line {i}: expected 3 finite numbers, got {len(vals)} "
+                          f"value(s)" + (" with NaN/inf" if len(vals) == 3 else ""))
             continue
         data.append(vals)
     if len(errors) > n0:
@@ -673,4 +842,5 @@ def write_map(path: str | os.PathLike, pq: PQMap) -> None:
     Path(path).write_text("\n".join(lines) + "\n")
 
 
-__all__ = ["Design", "DesignError", "Parameter", "Constant", "PQMap", "load", "loads", "write_map", "yaml_load"]
+__all__ = ["Design", "DesignError", "Parameter", "Constant", "PQMap", "load", "loads", "write_map", "yaml_load",
+           "yaml_load_file", "read_config_text", "ConfigTextError", "MAX_CONFIG_BYTES"]

@@ -163,3 +163,92 @@ EFFECTS: dict[str, str] = {
 
 # Columns of the active-valve P/Q map (parameter no. 52).
 MAP_COLUMNS = ("current [A]", "dp [Pa]", "flow [m^3/s]")
+
+
+# ---------------------------------------------------------------- physical ranges
+class Range(NamedTuple):
+    """An interval of physically meaningful values (SI); None = unbounded."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_incl: bool = False
+    hi_incl: bool = False
+
+    def contains(self, v: float) -> bool:
+        if self.lo is not None and not (v >= self.lo if self.lo_incl else v > self.lo):
+            return False
+        if self.hi is not None and not (v <= self.hi if self.hi_incl else v < self.hi):
+            return False
+        return True
+
+    def describe(self) -> str:
+        parts = []
+        if self.lo is not None:
+            parts.append(f"{'>=' if self.lo_incl else '>'} {self.lo:g}")
+        if self.hi is not None:
+            parts.append(f"{'<=' if self.hi_incl else '<'} {self.hi:g}")
+        return " and ".join(parts) or "any value"
+
+
+POS = Range(0.0)                                   # > 0
+NONNEG = Range(0.0, lo_incl=True)                  # >= 0
+NONPOS = Range(hi=0.0, hi_incl=True)               # <= 0
+COEF = Range(0.0, 1.0, hi_incl=True)               # discharge coefficient, 0 < Cq <= 1
+TEMPERATURE = Range(200.0, 500.0, True, True)      # K (a value in degC is caught)
+
+_SHIM_RANGES = {
+    "D_d": POS, "D_i": POS, "Cq_max": COEF, "lambda_crit": POS, "A_bleed": NONNEG, "Cq_bleed": COEF,
+    "A_slot": POS, "Cq_slot": COEF, "m_v": POS, "c_v": NONNEG, "sigma0": NONNEG, "F_c": POS, "alpha": POS,
+    "F_preload": NONNEG, "a": NONNEG, "b": NONNEG, "c": NONPOS, "d": NONPOS,
+}
+_INTAKE_RANGES = {
+    "D_d": POS, "D_i": POS, "D_c": POS, "D_h": POS, "Cq_max": COEF, "lambda_crit": POS, "A_slot": POS,
+    "Cq_slot": COEF, "m_v": POS, "c_v": NONNEG, "F_preload": NONNEG, "a": NONNEG, "b": NONNEG, "c": NONPOS,
+    "d": NONPOS, "x_v0": POS,
+}
+
+# Every scalar parameter ("group.name") and constant ("constants.NAME") with
+# its physical range. Stated once: the loader checks values and C bounds here.
+RANGES: dict[str, Range] = {
+    "geometry.M_rod": POS, "geometry.D_PT": POS, "geometry.D_R": POS, "geometry.V_b": POS,
+    "geometry.l_c0": POS, "geometry.l_r0": POS,
+    "oil.K_oil": Range(1e7, 1e11, True, True),      # Pa: mineral oils ~1.5e9; 1 Pa is nonsense
+    "oil.rho_oil": Range(100.0, 5000.0, True, True),
+    "oil.nu": POS, "oil.P_sat": POS, "oil.P_vap": POS, "oil.chi": Range(0.0, 1.0, lo_incl=True),
+    "oil.Gamma": Range(1.0, 2.0, True, True), "oil.P_0": POS, "oil.T": TEMPERATURE,
+    "third_tube.E": Range(1e7, lo_incl=True), "third_tube.nu_p": Range(0.0, 0.5),
+    "third_tube.r_o": POS, "third_tube.r_i": POS,
+    "top_mount.R": POS, "top_mount.p0": POS, "top_mount.p1": Range(), "top_mount.p2": POS,
+    "top_mount.q0": POS, "top_mount.q1": Range(), "top_mount.q2": POS,
+    "top_mount.k0": NONNEG, "top_mount.k1": POS, "top_mount.k2": POS,
+    "top_mount.c0": NONNEG, "top_mount.c1": POS, "top_mount.c2": NONNEG,   # c1 > 0: THESIS-ERRATA 33
+    **{f"{g}.{n}": r for g in ("piston_rebound", "base_compression") for n, r in _SHIM_RANGES.items()},
+    **{f"{g}.{n}": r for g in ("piston_intake", "base_intake") for n, r in _INTAKE_RANGES.items()},
+    "rod_friction.F_c": NONNEG, "rod_friction.F_s": NONNEG, "rod_friction.k_b": POS,
+    "constants.P_atm": POS, "constants.P_ref": POS, "constants.T_ref": TEMPERATURE, "constants.rho_gas": POS,
+    "constants.V_gas0": POS, "constants.pt_r_i": POS, "constants.pt_r_o": POS,
+    "constants.wall_ratio_third_tube": POS, "constants.A_bypass": NONNEG, "constants.leak_gap": POS,
+    "constants.leak_length": POS, "constants.Cq_bypass": COEF, "constants.p_transition": POS,
+    "constants.zeta": Range(0.0, 3.141592653589793), "constants.k_contact": POS,
+    "constants.zeta_contact": NONNEG, "constants.delta_contact": POS,
+    **{f"constants.x_max_{v}": POS for v in VALVES},
+    "constants.s2": NONNEG, "constants.c_comp": NONNEG, "constants.vd": POS, "constants.a_s": POS,
+    "constants.alpha_s": POS, "constants.y_unit": POS, "constants.w_unit": POS,
+}
+
+# Ordered pairs: (smaller, larger, strict, why) — value(smaller) < value(larger).
+ORDERED: tuple[tuple[str, str, bool, str], ...] = (
+    ("geometry.D_R", "geometry.D_PT", True, "the rod must be narrower than the bore"),
+    ("oil.P_vap", "oil.P_sat", True, "the vapour pressure lies below the gas saturation pressure"),
+    ("constants.P_atm", "oil.P_0", True, "the precharge must exceed atmospheric pressure"),
+    ("third_tube.r_i", "third_tube.r_o", True, "inner radius below outer radius"),
+    ("constants.pt_r_i", "constants.pt_r_o", True, "inner radius below outer radius"),
+    *((f"{g}.D_i", f"{g}.D_d", True, "inner diameter below disc diameter (eq. 4.21, 4.25)") for g in VALVES),
+    *((f"{g}.D_h", f"{g}.D_d", True, "hole diameter below disc diameter (eq. 4.22)") for g in INTAKE_VALVES),
+    ("rod_friction.F_c", "rod_friction.F_s", False, "Coulomb friction does not exceed static friction (eq. 4.41)"),
+)
+
+# Sums that must be positive (denominators of the model equations).
+POSITIVE_SUMS: tuple[tuple[tuple[str, ...], str], ...] = (
+    (("top_mount.c0", "top_mount.c2"), "denominator of eq. 4.34"),
+)

@@ -13,20 +13,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-import yaml
-
-from ..design import yaml_load
+from ..design import ConfigTextError, yaml_load_file
 from ..excitation import Excitation
 from ..model.layout import VALVE_NAMES
+from ..errors import UserError
 from .signals import band_noise, sine_burst_train, triangle_ramps, triangle_wave
 
 EXCITATION_RATE = 20_000.0  # [Hz] sampling of generated excitations
 
 
-class ProtocolError(ValueError):
+class ProtocolError(UserError):
     def __init__(self, errors: list[str]):
         self.errors = list(errors)
-        super().__init__("invalid test protocol:\n  - " + "\n  - ".join(self.errors))
+        ValueError.__init__(self, "invalid test protocol:\n  - " + "\n  - ".join(self.errors))
 
 
 @dataclass(frozen=True)
@@ -125,9 +124,9 @@ def load_protocol(path: str | Path) -> dict:
     if not path.is_file():
         raise ProtocolError([f"{path}: file not found"])
     try:
-        doc = yaml_load(path.read_text())
-    except yaml.YAMLError as e:
-        raise ProtocolError([f"{path}: not valid YAML: {e}"]) from None
+        doc = yaml_load_file(path)
+    except ConfigTextError as e:
+        raise ProtocolError([str(e)]) from None
     return validate(doc, str(path))
 
 
@@ -221,6 +220,15 @@ def build_runs(protocol: dict, seed: int = 0) -> list[Run]:
     return _BUILDERS[protocol["protocol"]](protocol, int(seed))
 
 
+def recording_rates(protocol: dict) -> float | dict[str, float]:
+    """The sampling rate [Hz] a record of the protocol is made at: one
+    value, or per run label where runs differ (top mount: static 200 Hz,
+    random and sweeps faster). For ``io.read_frame(..., rate=...)``."""
+    rates = {r.name: float(r.rate) for r in build_runs(protocol, 0)}
+    vals = set(rates.values())
+    return vals.pop() if len(vals) == 1 else rates
+
+
 def load_all(conf_dir: str | Path) -> dict[str, dict]:
     """Every protocol in ``conf_dir`` (conf/test), keyed by protocol name."""
     out = {}
@@ -230,4 +238,5 @@ def load_all(conf_dir: str | Path) -> dict[str, dict]:
     return out
 
 
-__all__ = ["Run", "ProtocolError", "PROTOCOLS", "load_protocol", "validate", "build_runs", "load_all"]
+__all__ = ["Run", "ProtocolError", "PROTOCOLS", "load_protocol", "validate", "build_runs", "load_all",
+           "recording_rates"]
