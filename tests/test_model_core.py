@@ -210,3 +210,17 @@ def test_a_failed_run_warns_when_framed(base):
     assert not r.ok
     with pytest.warns(RuntimeWarning, match="step cap"):
         r.to_frame()
+
+
+def test_the_hub_reads_only_the_chamber_states_and_parameters():
+    """damper.py (the volume balances) names only the chambers' / fluid's /
+    inputs' / bench's own parameters and the chambers' states: every other
+    submodel reads its own parameters and states, so adding one to it touches
+    its file and the design description only."""
+    from dampertwin.model import bench, chambers, fluid, inputs
+    src = (MODEL / "damper.py").read_text()
+    own_params = {d.name for m in (chambers, fluid, inputs, bench) for d in m.PARAMETERS}
+    used_params = set(re.findall(r"\bP\.(\w+)", src))
+    assert used_params and used_params <= own_params, used_params - own_params
+    used_states = set(re.findall(r"\bS\.(\w+)", src))
+    assert used_states <= {s.name for s in chambers.STATES}, used_states

@@ -62,3 +62,13 @@ def active_valve_flow(current, dp, currents, dps, flow):
     q0 = (1.0 - wj) * flow[i, j] + wj * flow[i, j + 1]
     q1 = (1.0 - wj) * flow[i + 1, j] + wj * flow[i + 1, j + 1]
     return s * ((1.0 - wi) * q0 + wi * q1)
+
+
+@njit(cache=True, error_model="numpy")
+def active_flow(p, aux, dp):
+    """The active valve in the assembled model: flow [m^3/s] at dp [Pa] and
+    the test's current (parameter CURRENT), map in ``aux``."""
+    return map_flow(p[_L.P.CURRENT], dp, aux)
+
+
+from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

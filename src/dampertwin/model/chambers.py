@@ -11,6 +11,7 @@ import math
 from numba import njit
 
 from .declarations import Parameter, State
+from .fluid import emulsion_bulk_modulus, series_bulk_modulus, wall_bulk_modulus
 
 PARAMETERS = (
     Parameter("A_R", "m^2", lambda d: math.pi * (d["geometry.D_PT"] ** 2 - d["geometry.D_R"] ** 2) / 4.0,
@@ -70,3 +71,34 @@ def rod_force(P_r, P_c, A_r, A_b, P_atm, F_mu):
     (P_r - P_atm) A_r - (P_c - P_atm) A_b + F_mu, A_r the annulus. Positive
     = tension (rebound) [N]."""
     return (P_r - P_atm) * A_r - (P_c - P_atm) * A_b + F_mu
+
+
+@njit(cache=True, error_model="numpy")
+def oil_modulus(pressure, p):
+    """Emulsion modulus (eq. 4.14-4.16) at absolute pressure [Pa], or K_oil
+    when the gas-content effect is off."""
+    if p[_L.P.E_GAS] > 0.5:
+        return emulsion_bulk_modulus(pressure, p[_L.P.K_OIL], p[_L.P.CHI], p[_L.P.P_SAT], p[_L.P.P_VAP],
+                                     p[_L.P.P_REF], p[_L.P.TEMP], p[_L.P.T_REF], p[_L.P.GAMMA])
+    return p[_L.P.K_OIL]
+
+
+@njit(cache=True, error_model="numpy")
+def moduli(p, P_r, P_c, P_b, P_res):
+    """Effective moduli [Pa] of the rebound, compression and third-tube
+    chambers: oil / emulsion, in series with the walls (eq. 4.13, 4.17-4.18),
+    times the cavitation factor."""
+    K_r = oil_modulus(P_r, p)
+    K_c = oil_modulus(P_c, p)
+    K_b = oil_modulus(P_b, p)
+    if p[_L.P.E_WALL] > 0.5:
+        K_c = series_bulk_modulus(K_c, wall_bulk_modulus(p[_L.P.PSI_PT], P_c - P_res, 1.0))
+        K_b = series_bulk_modulus(K_b, wall_bulk_modulus(p[_L.P.PSI_TT], P_b - P_res, p[_L.P.RATIO_TT]))
+    if p[_L.P.E_CAV] > 0.5:
+        K_r *= cavitation_factor(P_r, p[_L.P.P_VAP])
+        K_c *= cavitation_factor(P_c, p[_L.P.P_VAP])
+        K_b *= cavitation_factor(P_b, p[_L.P.P_VAP])
+    return K_r, K_c, K_b
+
+
+from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

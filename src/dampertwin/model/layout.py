@@ -10,9 +10,12 @@ plain integer constants.
 
 from __future__ import annotations
 
+from enum import IntEnum
+
 import numpy as np
 
 from . import active_valve, bench, chambers, fluid, inputs, piston_leakage, rod, rod_friction, top_mount, valves
+
 from .declarations import Parameter, State, index_enum
 from .valves import SHIM_VALVES, V_SIZE, VALVE_NAMES, valve_states
 
@@ -28,20 +31,43 @@ PARAM_NAMES = tuple(p.name for p in PARAMETERS) + tuple(
 CFG_VALVE, CFG_DAMPER, CFG_MODULE, CFG_TOPMOUNT = 0, 1, 2, 4
 CONFIGURATIONS = {"valve": CFG_VALVE, "damper": CFG_DAMPER, "module": CFG_MODULE, "topmount": CFG_TOPMOUNT}
 
-_DAMPER_STATES: tuple[State, ...] = (
-    chambers.STATES
-    + tuple(s for k, v in enumerate(VALVE_NAMES) for s in valve_states(k, v))
-    + rod_friction.STATES
+# A configuration is a sequence of state blocks, one per submodel instance;
+# each submodel reads and writes its own states at its block's offset.
+_DAMPER_BLOCKS = (
+    ("chambers", chambers.STATES),
+    *((v, valve_states(v, k)) for k, v in enumerate(VALVE_NAMES)),
+    ("rod_friction", rod_friction.STATES),
 )
-_MODULE_STATES = _DAMPER_STATES + rod.STATES + top_mount.STATES
+_MODULE_BLOCKS = _DAMPER_BLOCKS + (("rod", rod.STATES), ("top_mount", top_mount.STATES))
+_BENCH_BLOCKS = (("bench", bench.STATES), ("valve", bench.VALVE_STATES))
+_TOPMOUNT_BLOCKS = (("top_mount", top_mount.STATES),)
+
+
+def _states(blocks) -> tuple[State, ...]:
+    return tuple(s for _, states in blocks for s in states)
+
+
+def _offsets(name, blocks):
+    """IntEnum of the first state index of each block."""
+    starts, i = {}, 0
+    for block, states in blocks:
+        starts[block] = i
+        i += len(states)
+    return IntEnum(name, starts, module=__name__)
+
+
 STATES: dict[int, tuple[State, ...]] = {
-    CFG_VALVE: bench.STATES, CFG_DAMPER: _DAMPER_STATES, CFG_MODULE: _MODULE_STATES, CFG_TOPMOUNT: top_mount.STATES,
+    CFG_VALVE: _states(_BENCH_BLOCKS), CFG_DAMPER: _states(_DAMPER_BLOCKS), CFG_MODULE: _states(_MODULE_BLOCKS),
+    CFG_TOPMOUNT: _states(_TOPMOUNT_BLOCKS),
 }
-S = index_enum("S", [s.name for s in _MODULE_STATES], __name__)  # damper = the first N_DAMPER of these
-B = index_enum("B", [s.name for s in bench.STATES], __name__)
-T = index_enum("T", [s.name for s in top_mount.STATES], __name__)
-N_DAMPER = len(_DAMPER_STATES)
-N_MODULE = len(_MODULE_STATES)
+SB = _offsets("SB", _MODULE_BLOCKS)  # damper / module (the damper is the module's first blocks)
+BB = _offsets("BB", _BENCH_BLOCKS)
+TB = _offsets("TB", _TOPMOUNT_BLOCKS)
+S = index_enum("S", [s.name for s in STATES[CFG_MODULE]], __name__)  # every state by name
+B = index_enum("B", [s.name for s in STATES[CFG_VALVE]], __name__)
+T = index_enum("T", [s.name for s in STATES[CFG_TOPMOUNT]], __name__)
+N_DAMPER = len(STATES[CFG_DAMPER])
+N_MODULE = len(STATES[CFG_MODULE])
 N_STATES = {cfg: len(st) for cfg, st in STATES.items()}
 assert all(f"F_dahl_{v}" in S.__members__ for v in SHIM_VALVES)
 

@@ -31,3 +31,14 @@ PARAMETERS = (
 def leakage_flow(G, P_r, P_c):
     """Laminar leakage rebound -> compression [m^3/s]."""
     return G * (P_r - P_c)
+
+
+@njit(cache=True, error_model="numpy")
+def leakage(p, P_r, P_c):
+    """The leakage submodel in the assembled model [m^3/s] (0 when off)."""
+    if p[_L.P.E_LEAK] > 0.5:
+        return leakage_flow(p[_L.P.G_LEAK], P_r, P_c)
+    return 0.0
+
+
+from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

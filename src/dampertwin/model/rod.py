@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from .declarations import Parameter, State
+from .declarations import Parameter, State, index_enum
 from .top_mount import N_FLD
 
 PARAMETERS = (Parameter("M_ROD", "kg", "geometry.M_rod", "rod + piston mass (and the sprung share it carries)"),)
@@ -34,9 +34,34 @@ STATES = (
     State("x_rod", "m", 1e-4, static_rod_offset, "rod displacement (top-mount deflection)"),
     State("v_rod", "m/s", 1e-2, 0.0, "rod velocity"),
 )
+R = index_enum("R", [s.name for s in STATES], __name__)  # offsets inside this submodel's state block
 
 
 @njit(cache=True, error_model="numpy")
 def rod_acceleration(F_d, F_tm, M_rod):
     """Eq. 4.4: M_rod x_rod'' = F_d - F_tm [m/s^2]."""
     return (F_d - F_tm) / M_rod
+
+
+@njit(cache=True, error_model="numpy")
+def stroke(y, o, u, du):
+    """Stroke s = u - x_rod [m] and its rate [m/s] (THESIS-ERRATA 5)."""
+    return u - y[o + R.x_rod], du - y[o + R.v_rod]
+
+
+@njit(cache=True, error_model="numpy")
+def rod_position(y, o):
+    """Rod displacement and velocity: the top-mount deflection and its rate."""
+    return y[o + R.x_rod], y[o + R.v_rod]
+
+
+@njit(cache=True, error_model="numpy")
+def motion(y, o, p, F_d, F_tm, dy):
+    """Eq. 4.4 in the assembled model; writes dy[o + R.*], returns x_rod''."""
+    a = rod_acceleration(F_d, F_tm, p[_L.P.M_ROD])
+    dy[o + R.x_rod] = y[o + R.v_rod]
+    dy[o + R.v_rod] = a
+    return a
+
+
+from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

@@ -10,7 +10,7 @@ import math
 
 from numba import njit
 
-from .declarations import Parameter, State
+from .declarations import Parameter, State, index_enum
 
 PARAMETERS = (
     Parameter("FR_FC", "N", "rod_friction.F_c", "Coulomb friction level, eq. 4.41"),
@@ -25,6 +25,7 @@ PARAMETERS = (
 )
 
 STATES = (State("z", "m", 1e-5, 0.0, "LuGre bristle deflection, eq. 4.40"),)
+Z = index_enum("Z", [s.name for s in STATES], __name__)  # offsets inside this submodel's state block
 
 
 @njit(cache=True, error_model="numpy")
@@ -41,3 +42,20 @@ def lugre(z, dv, k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s):
     dz = dv - k_b * abs(dv) / g * z
     s1 = c_comp * math.exp(-((dv / vd) ** 2))
     return dz, k_b * z + s1 * dz + s2 * dv
+
+
+@njit(cache=True, error_model="numpy")
+def friction(y, o, p, dv, dy):
+    """The rod-friction submodel in the assembled model: friction force [N]
+    at extension rate dv [m/s]; writes its state rates into dy[o + Z.*]
+    (o: where the configuration placed this submodel's states)."""
+    if p[_L.P.E_ROD_FRICTION] > 0.5:
+        dz, F = lugre(y[o + Z.z], dv, p[_L.P.FR_KB], p[_L.P.FR_FC], p[_L.P.FR_FS], p[_L.P.FR_S2],
+                      p[_L.P.FR_CCOMP], p[_L.P.FR_VD], p[_L.P.FR_AS], p[_L.P.FR_ALPHAS])
+        dy[o + Z.z] = dz
+        return F
+    dy[o + Z.z] = 0.0
+    return 0.0
+
+
+from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from .declarations import Parameter, State
+from .declarations import Parameter, State, index_enum
 
 N_FLD = 5  # coefficients of the static load-deflection polynomial
 
@@ -40,6 +40,7 @@ STATES = (
     State("tm_y", "m", 1e-4, 0.0, "elastic internal state, eq. 4.33"),
     State("tm_w", "m", 1e-4, 0.0, "damping internal state, eq. 4.34"),
 )
+TM = index_enum("TM", [s.name for s in STATES], __name__)  # offsets inside this submodel's state block
 
 
 @njit(cache=True, error_model="numpy")
@@ -72,3 +73,26 @@ def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, co
         C = c0 * (q0 + q1 * abs(wd / w_unit) ** q2)  # eq. 4.36
         F += K * y + C * wd  # eq. 4.37
     return F
+
+
+@njit(cache=True, error_model="numpy")
+def mount(y, o, p, X, Xdot, dy):
+    """The top-mount submodel in the assembled model: force [N] at deflection
+    X [m] and rate Xdot [m/s]; writes its state rates into dy[o + TM.*]
+    (frozen when the dynamics are switched off)."""
+    x = y[o + TM.tm_x]
+    yy = y[o + TM.tm_y]
+    w = y[o + TM.tm_w]
+    xd, yd, wd = top_mount_rates(Xdot, x, yy, w, p[_L.P.TM_R], p[_L.P.TM_K0], p[_L.P.TM_K1], p[_L.P.TM_K2],
+                                 p[_L.P.TM_C0], p[_L.P.TM_C1], p[_L.P.TM_C2])
+    dyn = p[_L.P.E_TM_DYNAMICS] > 0.5
+    F = top_mount_force(X, yy, wd, p[_L.P.TM_P0], p[_L.P.TM_P1], p[_L.P.TM_P2], p[_L.P.TM_Q0], p[_L.P.TM_Q1],
+                        p[_L.P.TM_Q2], p[_L.P.TM_K0], p[_L.P.TM_C0], p[_L.P.TM_YU], p[_L.P.TM_WU],
+                        p[_L.P.TM_FLD0:_L.P.TM_FLD0 + N_FLD], dyn)
+    dy[o + TM.tm_x] = xd if dyn else 0.0
+    dy[o + TM.tm_y] = yd if dyn else 0.0
+    dy[o + TM.tm_w] = wd if dyn else 0.0
+    return F
+
+
+from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

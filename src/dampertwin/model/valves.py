@@ -73,14 +73,21 @@ PARAMETERS = (
 )
 
 
-def valve_states(k: int, valve: str, base: str = "VALVES") -> tuple[State, ...]:
-    """States of valve ``valve`` (parameter block ``k`` after ``base``): lift
-    and velocity (eq. 4.20), and the Dahl force (eq. 4.26) of a shim stack."""
-    st = (State(f"x_{valve}", "m", 1e-4, lambda q: seated_lift(q.block(base, k, V_SIZE), q["K_C"]),
-                f"lift of {valve} (seated at rest)"),
-          State(f"v_{valve}", "m/s", 1.0, 0.0, f"velocity of {valve}"))
-    if valve in SHIM_VALVES:
-        st += (State(f"F_dahl_{valve}", "N", 1.0, 0.0, f"Dahl friction force of {valve}"),)
+VS = index_enum("VS", ["x", "v", "F_dahl"], __name__)  # offsets inside a valve's state block
+
+
+def valve_states(valve: str, k: int | None = None, dahl: bool | None = None) -> tuple[State, ...]:
+    """States of one valve: lift and velocity (eq. 4.20) and, for a shim
+    stack, the Dahl force (eq. 4.26), in the order of ``VS``. ``k`` is its
+    parameter block (None: the flow bench's valve, block BENCH_VALVE)."""
+    def lift(q):
+        kk = int(q["BENCH_VALVE"]) if k is None else k
+        return seated_lift(q.block("VALVES", kk, V_SIZE), q["K_C"])
+
+    st = (State(f"x_{valve}", "m", 1e-4, lift, f"lift of the {valve} valve (seated at rest)"),
+          State(f"v_{valve}", "m/s", 1.0 if k is not None else 1e-1, 0.0, f"velocity of the {valve} valve"))
+    if valve in SHIM_VALVES if dahl is None else dahl:
+        st += (State(f"F_dahl_{valve}", "N", 1.0, 0.0, f"Dahl friction force of the {valve} valve"),)
     return st
 
 
@@ -250,3 +257,35 @@ def valve_acceleration(p, o, x, v, F_dahl, dp_disc, cq, A_f, mu, zeta, k_c, zeta
     c_c = 2.0 * zeta_c * math.sqrt(k_c * m)
     F += contact_force(x, v, p[o + V.XMAX], k_c, c_c, delta)
     return F / m, dF
+
+
+@njit(cache=True, error_model="numpy")
+def valve(y, o, k, p, p1, p2, dy):
+    """Valve k (parameter block k) in the assembled model, its states at
+    y[o + VS.*], between upstream p1 and downstream p2 [Pa]: writes its
+    state rates, returns the flow p1 -> p2 [m^3/s]."""
+    b = _L.P.VALVES + k * V_SIZE
+    x = y[o + VS.x]
+    v = y[o + VS.v]
+    shim = p[b + V.SHIM] > 0.5
+    F_dahl = y[o + VS.F_dahl] if shim else 0.0
+    rho = p[_L.P.RHO]
+    Q, dp_disc, cq, A_f = valve_flow(p, b, x, p1 - p2, rho, p[_L.P.NU], p[_L.P.P_TR],
+                                     p[_L.P.E_CQ] > 0.5, p[_L.P.E_SLOT] > 0.5)
+    a, dF = valve_acceleration(p, b, x, v, F_dahl, dp_disc, cq, A_f, rho * p[_L.P.NU], p[_L.P.ZETA],
+                               p[_L.P.K_C], p[_L.P.ZETA_C], p[_L.P.DELTA_C], p[_L.P.E_JET] > 0.5,
+                               p[_L.P.E_STICTION] > 0.5, p[_L.P.E_SHIM_FRICTION] > 0.5)
+    dy[o + VS.x] = v
+    dy[o + VS.v] = a
+    if shim:
+        dy[o + VS.F_dahl] = dF
+    return Q
+
+
+@njit(cache=True, error_model="numpy")
+def bypass(p, P_r, P_b):
+    """Bypass orifice rebound chamber -> third tube [m^3/s] (eq. 4.29)."""
+    return orifice_flow(p[_L.P.CQ_BP] * p[_L.P.A_BP], P_r - P_b, p[_L.P.RHO], p[_L.P.P_TR])
+
+
+from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)
