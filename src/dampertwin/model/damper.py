@@ -16,7 +16,7 @@ fills the state derivative ``dy`` and the output channels ``out``
 
 This file is the hub: the chamber volume balances (eq. 4.9-4.12) that join
 the submodels' flows, and the rod force (eq. 4.1). Each submodel reads its
-own parameters (``p[P.NAME]``) and states (at the offset of its block,
+own parameters (``p[P.<name>]``) and states (at the offset of its block,
 ``SB.<block>``) and writes its own state rates, so adding a parameter or a
 state to a submodel does not touch this file.
 """
