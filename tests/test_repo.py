@@ -46,3 +46,40 @@ def test_cli_entry_point_exit_code(tmp_path):
 def test_dvc_yaml_is_valid():
     doc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
     assert isinstance(doc.get("stages"), dict)
+
+
+def _tracked_files():
+    r = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True)
+    if r.returncode != 0:  # not a git checkout (e.g. an sdist): every file under the root
+        return [p.relative_to(ROOT).as_posix() for p in ROOT.rglob("*")
+                if p.is_file() and ".venv" not in p.parts and ".git" not in p.parts]
+    return r.stdout.split()
+
+
+def test_no_reference_outside_the_repository():
+    """Docs the code cites live in docs/; nothing points to a sibling folder."""
+    needle = ".." + "/shared"  # split so this file does not match itself
+    bad = []
+    for rel in _tracked_files():
+        p = ROOT / rel
+        if p.suffix in (".parquet", ".png", ".npz") or not p.is_file():
+            continue
+        try:
+            text = p.read_text()
+        except UnicodeDecodeError:
+            continue
+        if needle in text:
+            bad.append(rel)
+    assert not bad, f"files referencing {needle}: {bad}"
+    for doc in ("docs/THESIS-ERRATA.md", "docs/DESIGN.md"):
+        assert (ROOT / doc).is_file(), doc
+
+
+def test_errata_cited_by_the_design_exist_in_docs():
+    errata = (ROOT / "docs" / "THESIS-ERRATA.md").read_text()
+    numbers = {int(n) for n in re.findall(r"^(\d+)\. \*\*", errata, re.M)}
+    assert numbers == set(range(1, max(numbers) + 1))
+    cited = set()
+    for rel in ("conf/design/baseline.yaml", "conf/lab/nominal.yaml"):
+        cited |= {int(n) for n in re.findall(r"(?:ERRATA|errata)\.?(?:md)?(?: item)? (\d+)", (ROOT / rel).read_text())}
+    assert cited and cited <= numbers, cited - numbers
