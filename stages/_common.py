@@ -15,11 +15,19 @@ from dampertwin.design import Design, load, yaml_load
 ROOT = repo_root(Path(__file__).parent)
 CONF = ROOT / "conf"
 OUT = ROOT / "results" / "approach1"
-MEASURED = ROOT / "data" / "measured"
 
 
 def params() -> dict:
     return yaml_load((ROOT / "params.yaml").read_text())
+
+
+def measured_dir() -> Path:
+    """The measurement folder the stages read: params.yaml `measured`
+    (default data/measured, the lab's output; e.g. data/own for your own)."""
+    return ROOT / params().get("measured", "data/measured")
+
+
+MEASURED = measured_dir()
 
 
 def config():

@@ -1,4 +1,4 @@
-"""Command line: ``dampertwin design show|check``."""
+"""Command line: ``dampertwin design show|check``, ``plot``, ``import``, ``fit``."""
 
 from __future__ import annotations
 
@@ -62,7 +62,10 @@ def main(argv: list[str] | None = None) -> int:
     plot.add_argument("--data", default="data/measured", help="measured data folder")
     plot.add_argument("--out", default="results/plots", help="output folder (PNG files go to OUT/CASE/)")
     plot.add_argument("--conf", default="conf", help="configuration folder")
+    _add_import_fit(sub)
     args = ap.parse_args(argv)
+    if args.cmd in ("import", "fit"):
+        return _run_import_fit(args)
     if args.cmd == "plot":
         from .plotting import plot_case
 
@@ -83,6 +86,51 @@ def main(argv: list[str] | None = None) -> int:
         print(format_table(design, args.type))
     else:
         print(f"{args.path}: OK ({len(design.parameters)} parameters, hash {design.hash()})")
+    return 0
+
+
+def _add_import_fit(sub) -> None:
+    imp = sub.add_parser("import", help="convert your own measurement (any common units) into the project schema")
+    imp.add_argument("src", help="source file (.csv or .parquet)")
+    imp.add_argument("--map", required=True, dest="mapping", help="column mapping YAML (quantity + unit per column)")
+    imp.add_argument("--out", required=True, help="output Parquet, e.g. data/own/monosine/baseline_1.6.parquet")
+    imp.add_argument("--protocol", help="test schema to check (default: the mapping's or the output folder name)")
+    fit = sub.add_parser("fit", help="fit one submodel on a bench record: valve | compliance | topmount | friction")
+    fit.add_argument("submodel", choices=("valve", "compliance", "topmount", "friction"))
+    fit.add_argument("--data", required=True, help="the record to fit (Parquet or CSV, project schema)")
+    fit.add_argument("--design", default=str(DEFAULT_DESIGN), help="design YAML (start values, constants)")
+    fit.add_argument("--out", required=True, help="output folder: fit.json and PNG plots")
+    fit.add_argument("--predict", nargs="*", default=[], help="records only predicted (NRMSE reported)")
+    fit.add_argument("--bounds", help="search-space YAML (parameters: [{name, bounds | window, scale}])")
+    fit.add_argument("--param", action="append", default=[], metavar="NAME=LO:HI",
+                     help="search bounds on the command line (repeatable; overrides --bounds)")
+    fit.add_argument("--valve", help="valve of a 'valve' fit (piston_rebound, piston_intake, ...)")
+    fit.add_argument("--current", type=float, help="active-valve current [A] (compliance; default from the record)")
+    fit.add_argument("--population", type=int, default=None, help="GA population (default 20)")
+    fit.add_argument("--generations", type=int, default=None, help="GA generations (default 15)")
+    fit.add_argument("--seed", type=int, default=0)
+
+
+def _run_import_fit(args) -> int:
+    from .io import DataError
+
+    if args.cmd == "import":
+        from .importer import MappingError, import_measurement
+
+        try:
+            print(import_measurement(args.src, args.mapping, args.out, protocol=args.protocol))
+        except (MappingError, DataError) as e:
+            print(f"dampertwin import: {e}", file=sys.stderr)
+            return 1
+        return 0
+    from .fitting import FitError, run_fit_cli
+
+    try:
+        path = run_fit_cli(args)
+    except (FitError, DataError, DesignError) as e:
+        print(f"dampertwin fit: {e}", file=sys.stderr)
+        return 1
+    print(path)
     return 0
 
 
