@@ -27,8 +27,6 @@ def measured_dir() -> Path:
     return ROOT / params().get("measured", "data/measured")
 
 
-MEASURED = measured_dir()
-
 
 def config():
     """Composed config for the profile named in params.yaml."""

@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from _common import CONF, MEASURED, OUT, config, config_hash, read_overlay, write_json, write_text
+from _common import CONF, OUT, config, config_hash, read_overlay, write_json, write_text, measured_dir
 from dampertwin import kpi, report
 from dampertwin.io import read_frame, runs, write_frame
 from dampertwin.protocols import load_protocol
@@ -22,13 +22,13 @@ def main() -> None:
     rows65, rows66, plot_rows = [], [], []
     for v in load_variants(CONF / "variant"):
         sim_m = read_frame(OUT / "sim" / v.case / "monosine.parquet", "monosine")[0]
-        mea_m = read_frame(MEASURED / "monosine" / f"{v.case}.parquet", "monosine")[0]
+        mea_m = read_frame(measured_dir() / "monosine" / f"{v.case}.parquet", "monosine")[0]
         ps, pm = kpi.rod_acceleration_peaks(sim_m, f_mono), kpi.rod_acceleration_peaks(mea_m, f_mono)
         rows65.append(dict(no=v.row, case=v.title, current=v.current, sim_rebound=ps["rebound"],
                            meas_rebound=pm["rebound"], sim_compression=ps["compression"],
                            meas_compression=pm["compression"]))
         sim_r = read_frame(OUT / "sim" / v.case / "random.parquet", "random")[0]
-        mea_r = read_frame(MEASURED / "random" / f"{v.case}.parquet", "random")[0]
+        mea_r = read_frame(measured_dir() / "random" / f"{v.case}.parquet", "random")[0]
         ls, lm = kpi.psd_levels(sim_r), kpi.psd_levels(mea_r)
         rows66.append(dict(no=v.row, case=v.title, current=v.current, sim_200=ls["200 Hz [dB]"],
                            meas_200=lm["200 Hz [dB]"], sim_300=ls["300 Hz [dB]"], meas_300=lm["300 Hz [dB]"]))
@@ -48,7 +48,7 @@ def main() -> None:
         fig.savefig(pdir / "psd.png", dpi=100)
         plt.close(fig)
     sim_c = read_frame(OUT / "sim" / "baseline_1.6" / "curving.parquet", "curving")[0]
-    mea_c = read_frame(MEASURED / "curving" / "baseline.parquet", "curving")[0]
+    mea_c = read_frame(measured_dir() / "curving" / "baseline.parquet", "curving")[0]
     by_cur = {}
     for name, g in runs(sim_c):
         by_cur.setdefault(float(g["current [A]"].iloc[0]), []).append((name, g))
@@ -74,8 +74,19 @@ def main() -> None:
         a = np.abs(t66[col].to_numpy())
         metrics[col] = {"mean_abs": float(a.mean()), "max_abs": float(a.max())}
     write_json(OUT / "metrics.json", metrics)
-    pd.DataFrame(plot_rows).to_csv(OUT / "plots" / "kpi.csv", index=False)
+    write_kpi_plot_data(pd.DataFrame(plot_rows))
     write_json(OUT / "fits.json", fit_summary(cfg))
+
+
+KPI_FAMILIES = {"kpi_peaks.csv": ("rebound peak [g]", "compression peak [g]"),
+                "kpi_psd.csv": ("PSD 200 Hz [dB]", "PSD 300 Hz [dB]")}
+
+
+def write_kpi_plot_data(rows: pd.DataFrame) -> None:
+    """One CSV per KPI family for `dvc plots` (simulated vs measured, y = x
+    reference and case names in the tooltips: .dvc/plots/kpi_scatter.json)."""
+    for name, kpis in KPI_FAMILIES.items():
+        rows[rows.kpi.isin(kpis)].to_csv(OUT / "plots" / name, index=False)
 
 
 def fit_summary(cfg) -> dict:

@@ -4,7 +4,7 @@ baseline valve fits applied."""
 
 import matplotlib.pyplot as plt
 
-from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, read_overlay, seed_for, write_fit
+from _common import CONF, OUT, baseline, checkpoint, config, read_overlay, seed_for, write_fit, measured_dir
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
@@ -21,7 +21,7 @@ def main() -> None:
     for v in VALVES:
         d = d.with_overrides(read_overlay(OUT / "valves" / v / "overlay.yaml"))
     cal = yaml_load((CONF / "calibration" / "compliance.yaml").read_text())
-    meas, _ = read_frame(MEASURED / "compliance" / "baseline.parquet", "compliance")
+    meas, _ = read_frame(measured_dir() / "compliance" / "baseline.parquet", "compliance")
     seed = seed_for("compliance_fit")
     out = OUT / "compliance"
     bandwidth = load_protocol(CONF / "test" / "compliance.yaml").get("sensors", {}).get("force")

@@ -8,7 +8,7 @@ import sys
 
 import matplotlib.pyplot as plt
 
-from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, seed_for, write_fit
+from _common import CONF, OUT, baseline, checkpoint, config, seed_for, write_fit, measured_dir
 from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
@@ -28,7 +28,7 @@ def main(name: str) -> None:
     cal = yaml_load((CONF / "calibration" / "valves.yaml").read_text())
     fb = load_protocol(CONF / "test" / "flowbench.yaml")
     bench = {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
-    meas, _ = read_frame(MEASURED / "flowbench" / f"{name}.parquet", "flowbench")
+    meas, _ = read_frame(measured_dir() / "flowbench" / f"{name}.parquet", "flowbench")
     out = OUT / "valves" / name
     seed = seed_for(f"flowbench_fit/{name}")
     res = fit_valve(d, valve, meas, cal, GASettings.from_config(cfg.profile.ga.valves), seed, bench=bench,

@@ -7,7 +7,7 @@ import sys
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, seed_for, write_fit
+from _common import CONF, OUT, baseline, checkpoint, config, seed_for, write_fit, measured_dir
 from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
@@ -24,7 +24,7 @@ def main(name: str) -> None:
     if TOP_MOUNTS[name]:
         d = load_variant(CONF / "variant" / f"{TOP_MOUNTS[name]}.yaml").apply(d)
     cal = yaml_load((CONF / "calibration" / "topmount.yaml").read_text())
-    meas, _ = read_frame(MEASURED / "topmount" / f"{name}.parquet", "topmount")
+    meas, _ = read_frame(measured_dir() / "topmount" / f"{name}.parquet", "topmount")
     seed = seed_for(f"topmount_fit/{name}")
     out = OUT / "topmount" / name
     bandwidth = load_protocol(CONF / "test" / "topmount.yaml").get("sensors", {}).get("force")
