@@ -98,7 +98,7 @@ def fit_summary(cfg) -> dict:
         m = json.loads((ov.parent / "metrics.json").read_text())
         fits["fits"][name] = {"values": read_overlay(ov), "objective_start": m["objective_start"],
                               "objective_best": m["objective_best"], "failed_simulations": m["failed_simulations"],
-                              "evaluations": m["evaluations"]}
+                              "evaluations": m["evaluations"], "uncertainty": m.get("uncertainty")}
     return fits
 
 

@@ -8,6 +8,7 @@ from _common import CONF, OUT, baseline, checkpoint, config, read_overlay, seed_
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
+from dampertwin.fitting import study_uncertainty
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol
 from dampertwin.report import simulate_from_record
@@ -30,7 +31,8 @@ def main() -> None:
                          force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
-    write_fit(out, res, meta, "N*s", d.hash(), extra=res.best)
+    unc = study_uncertainty("compliance", d, res.best, meas, cutoff=cal["input_cutoff"], force_bandwidth=bandwidth)
+    write_fit(out, res, meta, "N*s", d.hash(), extra={**res.best, "uncertainty": unc})
     fitted = d.with_overrides(res.best)
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
     name, g = runs(meas)[-1]

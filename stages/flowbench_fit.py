@@ -13,6 +13,7 @@ from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
+from dampertwin.fitting import study_uncertainty
 from dampertwin.io import read_frame
 from dampertwin.simulation import simulate
 from dampertwin.protocols import build_runs, load_protocol
@@ -35,7 +36,8 @@ def main(name: str) -> None:
                     checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler)
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
-    write_fit(out, res, meta, "Pa*s", d.hash())
+    unc = study_uncertainty("valve", d, res.best, meas, cutoff=cal["input_cutoff"], valve=valve, bench=bench)
+    write_fit(out, res, meta, "Pa*s", d.hash(), extra={"uncertainty": unc})
     run = next(r for r in build_runs(fb) if r.bench_valve == valve)
     sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate, bench=bench)
     fig = report.pq_figure({valve: meas}, {valve: sim.to_frame()}, f"{name}: flow bench, measured vs fitted model")

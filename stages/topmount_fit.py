@@ -12,6 +12,7 @@ from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load
+from dampertwin.fitting import study_uncertainty
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol
 from dampertwin.report import simulate_from_record
@@ -34,7 +35,10 @@ def main(name: str) -> None:
     best = {**res.best, "top_mount.F_LD": coef}
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept}
-    write_fit(out, res, meta, "N*s", d.hash(), best=best)
+    d_fit = d.with_overrides({"top_mount.F_LD": coef})  # the static curve the GA ran with
+    unc = study_uncertainty("topmount", d_fit, res.best, meas, cutoff=cal["input_cutoff"], force_bandwidth=bandwidth,
+                            run=cal["dynamic_run"])
+    write_fit(out, res, meta, "N*s", d.hash(), best=best, extra={"uncertainty": unc})
     fitted = d.with_overrides(best)
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
     g = dict(runs(meas))["random"]

@@ -59,7 +59,11 @@ def main(argv: list[str] | None = None) -> int:
     chk.add_argument("path")
     plot = sub.add_parser("plot", help="PNG plots of one design case: P-Q, F-V / F-x, mono-sine, PSD")
     plot.add_argument("case", help="design case, a file name of conf/variant/ (e.g. baseline_1.6)")
-    plot.add_argument("--data", default="data/measured", help="measured data folder")
+    plot.add_argument("--measured", "--data", dest="data", default=None,
+                      help="measured data folder to overlay (e.g. data/measured or data/own); default none")
+    plot.add_argument("--design", dest="design_path", default=None,
+                      help="design file to draw (e.g. results/approach1/designs/CASE.yaml, a calibrated one); "
+                           "default: conf/design/baseline.yaml + the case's variant")
     plot.add_argument("--out", default="results/plots", help="output folder (PNG files go to OUT/CASE/)")
     plot.add_argument("--conf", default="conf", help="configuration folder")
     _add_import_fit(sub)
@@ -70,9 +74,10 @@ def main(argv: list[str] | None = None) -> int:
         from .plotting import plot_case
 
         try:
-            for p in plot_case(args.case, Path(args.conf), Path(args.data), Path(args.out)):
+            for p in plot_case(args.case, Path(args.conf), Path(args.data) if args.data else None, Path(args.out),
+                               Path(args.design_path) if args.design_path else None):
                 print(p)
-        except (FileNotFoundError, ValueError) as e:
+        except (FileNotFoundError, ValueError, DesignError) as e:
             print(f"dampertwin plot: {e}", file=sys.stderr)
             return 1
         return 0

@@ -424,6 +424,29 @@ def _residual_stack(problem: _Problem, sims, fi: int, row: int) -> np.ndarray:
     return np.concatenate([s[row] - c[1] for s, c in zip(sims[fi], problem.files[fi][1])])
 
 
+def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> tuple[dict, dict]:
+    """Gauss-Newton intervals of ``best`` from the fitted file's residual:
+    one batch of simulations (the optimum + one forward step per parameter,
+    1e-3 relative, stepping inward at a search bound). Returns (ci, sims)."""
+    keys = list(best)
+    bounds = {s.key: (s.lo, s.hi) for s in (specs or [])}
+    rows, steps = [dict(best)], []
+    for k in keys:
+        r = dict(best)
+        lo, hi = bounds.get(k, (-np.inf, np.inf))
+        h = 1e-3 * abs(r[k]) if r[k] != 0 else 1e-3 * (hi - lo if np.isfinite(hi - lo) else 1.0)
+        if r[k] + h > hi:
+            h = -h
+        r[k] += h
+        rows.append(r)
+        steps.append(h)
+    sims = problem.simulate(rows)
+    r0 = _residual_stack(problem, sims, 0, 0)
+    J = np.column_stack([(_residual_stack(problem, sims, 0, j + 1) - r0) / h for j, h in enumerate(steps)])
+    ok = np.all(np.isfinite(J), axis=1) & np.isfinite(r0)
+    return gauss_newton_ci(J[ok], r0[ok], keys, np.array([best[k] for k in keys])), sims
+
+
 def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, settings, seed, extra_meta: dict,
                plot_fn=None, fixed_overrides: dict | None = None) -> dict:
     from .calibration.ga import Evaluator, run_ga
@@ -431,23 +454,7 @@ def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, setting
     keys = [s.key for s in specs]
     x0 = {k: float(problem.design[k]) for k in keys}
     res = run_ga(specs, Evaluator(problem.objective(keys)), settings, seed, x0=x0, label=label)
-    values = np.array([res.best[k] for k in keys])
-    # Jacobian of the fitted file's residual: one batch (optimum + one forward step per parameter)
-    rows = [dict(res.best)]
-    steps = []
-    for s in specs:
-        r = dict(res.best)
-        h = 1e-3 * abs(r[s.key]) if r[s.key] != 0 else 1e-3 * (s.hi - s.lo)
-        if r[s.key] + h > s.hi:
-            h = -h
-        r[s.key] += h
-        rows.append(r)
-        steps.append(h)
-    sims = problem.simulate(rows)
-    r0 = _residual_stack(problem, sims, 0, 0)
-    J = np.column_stack([(_residual_stack(problem, sims, 0, j + 1) - r0) / h for j, h in enumerate(steps)])
-    ok = np.all(np.isfinite(J), axis=1) & np.isfinite(r0)
-    ci = gauss_newton_ci(J[ok], r0[ok], keys, values)
+    ci, sims = _jacobian_ci(problem, dict(res.best), specs)
     files = {}
     for fi, (path, cases) in enumerate(problem.files):
         meas = np.concatenate([c[1] for c in cases])
@@ -628,6 +635,37 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
                       fixed_overrides=fixed)
 
 
+def study_uncertainty(submodel: str, design: Design, best: dict, measured: pd.DataFrame, *, cutoff: float,
+                      valve: str | None = None, bench: dict | None = None, force_bandwidth: float | None = None,
+                      run: str | None = None, specs=None) -> dict:
+    """Gauss-Newton intervals of a study fit (stages/*_fit.py) at its optimum
+    ``best`` (design overrides), on the same record and input filtering as
+    calibration/approach1: valve (flow bench), compliance, or topmount
+    (the record's run ``run``)."""
+    from .calibration.approach1 import _Channel, _record_input, _through_sensor
+
+    cases = []
+    if submodel == "valve":
+        for _, g in runs(measured):
+            t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
+            cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
+        ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"),
+                      lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
+        prob = _Problem(design, "valve", ch, [("record", cases)], {"bench": bench} if bench else {})
+    else:
+        col, cfg = ("rod force [N]", "damper") if submodel == "compliance" else ("top mount force [N]", "topmount")
+        for name, g in runs(measured):
+            if run is not None and name != run:
+                continue
+            t, ex = _record_input(g, "displacement [m]", "displacement", cutoff)
+            extra = {"current": float(g["current [A]"].iloc[0])} if submodel == "compliance" else {}
+            cases.append((t, g["force [N]"].to_numpy(), ex, extra))
+        fs = 1.0 / (cases[0][0][1] - cases[0][0][0])
+        prob = _Problem(design, cfg, _through_sensor(col, force_bandwidth, fs), [("record", cases)], {})
+    ci, _ = _jacobian_ci(prob, {k: float(v) for k, v in best.items()}, specs)
+    return ci
+
+
 def _specs(d: Design, items, prefix: str, where: str):
     from .calibration.approach1 import specs_from_config
 
@@ -673,5 +711,5 @@ def run_fit_cli(args) -> Path:
 
 
 __all__ = ["FitError", "lugre_force", "simulate_friction", "record_velocity", "fit_friction", "fit_valve",
-           "fit_compliance", "fit_topmount", "coulomb_viscous_fit", "nrmse", "gauss_newton_ci", "effective_n",
+           "fit_compliance", "fit_topmount", "study_uncertainty", "coulomb_viscous_fit", "nrmse", "gauss_newton_ci", "effective_n",
            "parse_param_args"]
