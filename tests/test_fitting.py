@@ -92,3 +92,60 @@ def test_gauss_newton_interval_on_linear_model():
     ci = gauss_newton_ci(x[:, None], r, ["a"], np.array([a]))
     se = np.sqrt(np.dot(r, r) / (400 - 1) / np.dot(x, x))
     assert ci["parameters"]["a"]["std"] == pytest.approx(se, rel=0.1)
+
+
+def test_study_report_flags_and_html(tmp_path):
+    import shutil
+
+    from conftest import ROOT
+    from dampertwin.study_report import build_report
+
+    src = ROOT / "results" / "approach1"
+    for f in ("table_6_5.parquet", "table_6_6.parquet", "fits.json", "metrics.json"):
+        shutil.copy(src / f, tmp_path / f)
+    fits = json.loads((tmp_path / "fits.json").read_text())
+    name = next(iter(fits["fits"]))
+    key = next(iter(fits["fits"][name]["values"]))
+    fits["fits"][name]["uncertainty"] = {"parameters": {key: {"std": 1.0, "ci95": [0.0, 2.0], "rel_std": 3.0,
+                                                              "identifiable": False}}}
+    (tmp_path / "fits.json").write_text(json.dumps(fits))
+    md, html = build_report(tmp_path, measured_label="test data", cases=["baseline_1.6"])
+    text = md.read_text()
+    assert "## Flags" in text and f"{name}: {key} poorly identified" in text
+    t65 = pd.read_parquet(tmp_path / "table_6_5.parquet")
+    worst = t65.loc[t65["Rebound diff [%]"].abs().idxmax(), "Design case"]
+    assert f"- {worst}: Rebound diff [%]" in text  # the table's worst row is flagged
+    assert "![baseline_1.6 monosine](plots/baseline_1.6/monosine.png)" in text
+    h = html.read_text()
+    assert "<table>" in h and "<img" in h
+
+
+def test_fit_cli_valve_reports_nrmse_and_intervals(tmp_path):
+    """A valve fit on a flow-bench record simulated from the baseline with a
+    changed stiffness (SYNTHETIC): fit.json carries NRMSE per file, the
+    objective and an interval per parameter; the GA lowers the objective."""
+    from conftest import BASELINE
+    from dampertwin.design import load
+    from dampertwin.excitation import Excitation
+    from dampertwin.simulation import simulate
+
+    d = load(BASELINE)
+    t = np.arange(0, 2.001, 1e-3)
+    q = 20.0 / 60000.0 * np.interp(t, [0, 1.0, 2.001], [0.0, 1.0, 0.0])
+    ex = Excitation.from_samples(t, q, kind="flow")
+    r = simulate(d.with_overrides({"piston_intake.a": 260.0}), ex, "valve", bench_valve="piston_intake", rate=1000.0)
+    f = r.to_frame()
+    rec = write_frame(tmp_path / "pi.parquet", pd.DataFrame(
+        {"time [s]": t, "flow [m^3/s]": q, "dp [Pa]": (f["p upstream [Pa]"] - f["p downstream [Pa]"]).to_numpy()[:len(t)]}),
+        {"synthetic": True})
+    out = tmp_path / "fit"
+    assert main(["fit", "valve", "--valve", "piston_intake", "--data", str(rec), "--out", str(out),
+                 "--param", "a=100:400", "--population", "6", "--generations", "3", "--predict", str(rec)]) == 0
+    doc = json.loads((out / "fit.json").read_text())
+    assert set(doc["parameters"]) == {"piston_intake.a"}
+    assert doc["objective"]["best"] < doc["objective"]["start"]
+    assert abs(doc["parameters"]["piston_intake.a"] - 260.0) < abs(200.0 - 260.0)
+    assert doc["files"][str(rec)]["nrmse"] < 0.05
+    u = doc["uncertainty"]["parameters"]["piston_intake.a"]
+    assert u["ci95"][0] < doc["parameters"]["piston_intake.a"] < u["ci95"][1]
+    assert list(out.glob("valve_*.png"))

@@ -70,8 +70,9 @@ def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[str]]:
     return pd.DataFrame(rows), flags
 
 
-def build_report(study: str | Path, *, measured_label: str = "") -> tuple[Path, Path]:
-    """Write study/report.md and study/report.html from the study folder."""
+def build_report(study: str | Path, *, measured_label: str = "", cases: list[str] | None = None) -> tuple[Path, Path]:
+    """Write study/report.md and study/report.html from the study folder.
+    ``cases``: the case folder names in table order (default: conf/variant)."""
     study = Path(study)
     t65 = pd.read_parquet(study / "table_6_5.parquet")
     t66 = pd.read_parquet(study / "table_6_6.parquet")
@@ -119,7 +120,7 @@ def build_report(study: str | Path, *, measured_label: str = "") -> tuple[Path, 
            "Mono-sine plots shade the KPI window (the last cycle) and mark the chosen rebound / compression peaks.",
            ""]
     case_col = "Design case" if "Design case" in t65.columns else t65.columns[1]
-    cases = _case_folders(study)
+    cases = _case_folders(study) if cases is None else cases
     for title, folder in zip(t65[case_col], cases):
         md += [f"#### {title}", ""]
         md += [f"![{folder} {p}](plots/{folder}/{p}.png)" for p in CASE_PLOTS]
