@@ -83,3 +83,34 @@ def test_errata_cited_by_the_design_exist_in_docs():
     for rel in ("conf/design/baseline.yaml", "conf/lab/nominal.yaml"):
         cited |= {int(n) for n in re.findall(r"(?:ERRATA|errata)\.?(?:md)?(?: item)? (\d+)", (ROOT / rel).read_text())}
     assert cited and cited <= numbers, cited - numbers
+
+
+def test_measured_folder_is_a_param_and_only_the_lab_writes_data_measured():
+    params = yaml.safe_load((ROOT / "params.yaml").read_text())
+    assert params["measured"] == "data/measured"
+    doc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
+    for name, st in doc["stages"].items():
+        body = st.get("do", st)
+        deps = [str(d) for d in body.get("deps", [])]
+        outs = [next(iter(o)) if isinstance(o, dict) else o for o in body.get("outs", [])]
+        if name == "lab":
+            assert outs == ["data/measured"]
+            continue
+        assert not any("data/measured" in d for d in deps), (name, deps)  # read through ${measured}
+        assert not any(o.startswith("data/") for o in outs), (name, outs)  # data/own is never written
+        if any("${measured}" in d for d in deps):
+            assert "measured" in body.get("params", []), name
+
+
+def test_dvc_plots_one_per_kpi_family_with_identity_line_and_case_tooltip():
+    import json
+
+    doc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
+    plots = [next(iter(p)) for p in doc["stages"]["compare"]["plots"]]
+    assert plots == ["results/approach1/plots/kpi_peaks.csv", "results/approach1/plots/kpi_psd.csv"]
+    tpl = json.loads((ROOT / ".dvc" / "plots" / "kpi_scatter.json").read_text())
+    line, points = tpl["layer"]
+    assert line["encoding"]["x"]["field"] == line["encoding"]["y"]["field"]  # y = x
+    assert {"field": "case", "type": "nominal"} in points["encoding"]["tooltip"]
+    cfg = (ROOT / ".dvc" / "config").read_text()
+    assert "remote = " in cfg  # a default remote: dvc push works
