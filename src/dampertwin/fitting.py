@@ -590,7 +590,8 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
     input, force output, eq. 6.3). With ``config['static'] = {run, order}``
     and that run in the record, the static curve is fitted by least squares
     first (kept only if it lowers eq. 6.3, as in the study); the GA then
-    uses the runs named in ``config['runs']`` (default: all but the static)."""
+    uses the runs named in ``config['runs']`` (or ``config['dynamic_run']``,
+    as in conf/calibration/topmount.yaml; default: all but the static)."""
     from .calibration.approach1 import _record_input, _through_sensor, fit_static_curve
 
     d, cfg = _load(design), dict(config or {})
@@ -601,7 +602,7 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
     static = cfg.get("static") or {}
     names = [n for n, _ in runs(meas0)]
     fixed = {}
-    want = cfg.get("runs")
+    want = cfg.get("runs") or ([cfg["dynamic_run"]] if cfg.get("dynamic_run") else None)
     files = []
     for p in [data, *predict]:
         cases = []
