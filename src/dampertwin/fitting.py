@@ -310,16 +310,15 @@ def fit_friction(data, *, design: Design | str | os.PathLike | None = None, boun
         dn[k] -= h
         J[:, j] = (simulate_friction(t, v, **up) - simulate_friction(t, v, **dn)) / (2 * h)
     ci = gauss_newton_ci(J, r0, names, values)
+    cvb = coulomb_viscous_fit(v, Fm)
     files = {}
-    baseline = {}
     for p, f, role in zip(paths, frames, ["fitted"] + ["predicted"] * len(predict)):
         vv = record_velocity(f)
         FF = f["force [N]"].to_numpy(float)
         sim = simulate_friction(f["time [s]"].to_numpy(float), vv, **p_best)
-        cv = coulomb_viscous_fit(record_velocity(df), Fm)
-        files[str(p)] = {"role": role, "nrmse": nrmse(FF, sim), "sha256": _sha(p), "samples": len(FF),
-                         "nrmse_coulomb_viscous": nrmse(FF, np.column_stack([np.sign(vv), vv]) @ [cv["F_c"], cv["c"]])}
-    cvb = coulomb_viscous_fit(v, Fm)
+        cv = np.column_stack([np.sign(vv), vv]) @ [cvb["F_c"], cvb["c"]]
+        files[str(p)] = {"role": role, "nrmse": nrmse(FF, sim), "nrmse_coulomb_viscous": nrmse(FF, cv),
+                         "sha256": _sha(p), "samples": len(FF)}
     baseline = {"model": "F = F_c sign(v) + c v (linear least squares on the fitted file)",
                 "F_c [N]": cvb["F_c"], "c [N*s/m]": cvb["c"], "nrmse": nrmse(Fm, cvb["prediction"])}
     result = {"submodel": "friction", "model": "LuGre with Stribeck curve, thesis eq. 4.38-4.41 (errata 34)",
@@ -526,7 +525,7 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
     flow-bench record (``flow [m^3/s]`` input, ``dp [Pa]`` output, eq. 6.1).
     Default search space: conf/calibration/valves.yaml's items for the valve
     kind, unless ``bounds`` / ``config['parameters']`` are given."""
-    from .calibration.approach1 import SHIM_VALVES, _Channel, _record_input, specs_from_config
+    from .calibration.approach1 import SHIM_VALVES, _Channel, _record_input
 
     d, cfg = _load(design), dict(config or {})
     if valve not in ("piston_rebound", "piston_intake", "base_compression", "base_intake"):
@@ -559,7 +558,7 @@ def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, conf
                    current: float | None = None, population=None, generations=None) -> dict:
     """Fit gas content and oil bulk modulus (default) on a damper-level sine
     record (displacement input, force output, eq. 6.2)."""
-    from .calibration.approach1 import _record_input, _through_sensor, specs_from_config
+    from .calibration.approach1 import _record_input, _through_sensor
 
     d, cfg = _load(design), dict(config or {})
     items = bounds or cfg.get("parameters") or _study_items("compliance.yaml", "parameters")
