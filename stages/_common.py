@@ -22,7 +22,6 @@ from dampertwin.errors import UserError, run_main
 ROOT = repo_root(Path(__file__).parent)
 CONF = ROOT / "conf"
 OUT = ROOT / "results" / "approach1"
-MEASURED = ROOT / "data" / "measured"
 
 
 def params() -> dict:
@@ -65,6 +64,13 @@ def staged_dir(out: Path):
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def measured_dir() -> Path:
+    """The measurement folder the stages read: params.yaml `measured`
+    (default data/measured, the lab's output; e.g. data/own for your own)."""
+    return ROOT / params().get("measured", "data/measured")
+
 
 
 def config():

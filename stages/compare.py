@@ -9,10 +9,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from _common import CONF, MEASURED, OUT, config, config_hash, read_overlay, write_json, write_text
+from _common import CONF, OUT, config, config_hash, read_overlay, write_json, write_text, measured_dir, params
 from dampertwin import kpi, report
 from dampertwin.io import read_frame, runs, write_frame
 from dampertwin.protocols import load_protocol
+from dampertwin.study_report import build_report
 from dampertwin.variants import load_variants
 
 
@@ -20,15 +21,17 @@ def main() -> None:
     cfg = config()
     f_mono = load_protocol(CONF / "test" / "monosine.yaml")["frequency"]
     rows65, rows66, plot_rows = [], [], []
+    synthetic = False
     for v in load_variants(CONF / "variant"):
         sim_m = read_frame(OUT / "sim" / v.case / "monosine.parquet", "monosine")[0]
-        mea_m = read_frame(MEASURED / "monosine" / f"{v.case}.parquet", "monosine")[0]
+        mea_m, mmeta = read_frame(measured_dir() / "monosine" / f"{v.case}.parquet", "monosine")
+        synthetic = synthetic or bool(mmeta.get("synthetic"))
         ps, pm = kpi.rod_acceleration_peaks(sim_m, f_mono), kpi.rod_acceleration_peaks(mea_m, f_mono)
         rows65.append(dict(no=v.row, case=v.title, current=v.current, sim_rebound=ps["rebound"],
                            meas_rebound=pm["rebound"], sim_compression=ps["compression"],
                            meas_compression=pm["compression"]))
         sim_r = read_frame(OUT / "sim" / v.case / "random.parquet", "random")[0]
-        mea_r = read_frame(MEASURED / "random" / f"{v.case}.parquet", "random")[0]
+        mea_r = read_frame(measured_dir() / "random" / f"{v.case}.parquet", "random")[0]
         ls, lm = kpi.psd_levels(sim_r), kpi.psd_levels(mea_r)
         rows66.append(dict(no=v.row, case=v.title, current=v.current, sim_200=ls["200 Hz [dB]"],
                            meas_200=lm["200 Hz [dB]"], sim_300=ls["300 Hz [dB]"], meas_300=lm["300 Hz [dB]"]))
@@ -48,7 +51,7 @@ def main() -> None:
         fig.savefig(pdir / "psd.png", dpi=100)
         plt.close(fig)
     sim_c = read_frame(OUT / "sim" / "baseline_1.6" / "curving.parquet", "curving")[0]
-    mea_c = read_frame(MEASURED / "curving" / "baseline.parquet", "curving")[0]
+    mea_c = read_frame(measured_dir() / "curving" / "baseline.parquet", "curving")[0]
     by_cur = {}
     for name, g in runs(sim_c):
         by_cur.setdefault(float(g["current [A]"].iloc[0]), []).append((name, g))
@@ -57,15 +60,17 @@ def main() -> None:
     plt.close(fig)
 
     t65, t66 = kpi.table_6_5(rows65), kpi.table_6_6(rows66)
+    measured = params().get("measured", "data/measured")
+    source = "measured data SYNTHETIC" if synthetic else f"measured data: {measured}"
     meta = {"profile": cfg.profile.name, "seed": int(cfg.seed), "config_hash": config_hash(),
             "kpi": "thesis tables 6.5 / 6.6",
             "psd": "Welch 2 Hz resolution, mean over a 10 Hz band, dB re 1 g^2/Hz"}
     write_frame(OUT / "table_6_5.parquet", t65, meta)
     write_frame(OUT / "table_6_6.parquet", t66, meta)
     write_text(OUT / "table_6_5.md", "Table 6.5 - mono-sine rod acceleration peaks, calibrated model vs measured "
-               f"(profile {cfg.profile.name}; measured data SYNTHETIC)\n\n" + kpi.to_markdown(t65))
+               f"(profile {cfg.profile.name}; {source})\n\n" + kpi.to_markdown(t65))
     write_text(OUT / "table_6_6.md", "Table 6.6 - PSD of rod acceleration at 200 / 300 Hz [dB re 1 g^2/Hz] "
-               f"(profile {cfg.profile.name}; measured data SYNTHETIC)\n\n" + kpi.to_markdown(t66))
+               f"(profile {cfg.profile.name}; {source})\n\n" + kpi.to_markdown(t66))
     metrics = {}
     for col in ("Rebound diff [%]", "Compression diff [%]"):
         a = np.abs(t65[col].to_numpy())
@@ -74,8 +79,20 @@ def main() -> None:
         a = np.abs(t66[col].to_numpy())
         metrics[col] = {"mean_abs": float(a.mean()), "max_abs": float(a.max())}
     write_json(OUT / "metrics.json", metrics)
-    pd.DataFrame(plot_rows).to_csv(OUT / "plots" / "kpi.csv", index=False)
+    write_kpi_plot_data(pd.DataFrame(plot_rows))
     write_json(OUT / "fits.json", fit_summary(cfg))
+    build_report(OUT, measured_label=f"{measured}" + (" (SYNTHETIC: the virtual laboratory)" if synthetic else ""))
+
+
+KPI_FAMILIES = {"kpi_peaks.csv": ("rebound peak [g]", "compression peak [g]"),
+                "kpi_psd.csv": ("PSD 200 Hz [dB]", "PSD 300 Hz [dB]")}
+
+
+def write_kpi_plot_data(rows: pd.DataFrame) -> None:
+    """One CSV per KPI family for `dvc plots` (simulated vs measured, y = x
+    reference and case names in the tooltips: .dvc/plots/kpi_scatter.json)."""
+    for name, kpis in KPI_FAMILIES.items():
+        rows[rows.kpi.isin(kpis)].to_csv(OUT / "plots" / name, index=False)
 
 
 def fit_summary(cfg) -> dict:
@@ -87,7 +104,7 @@ def fit_summary(cfg) -> dict:
         m = json.loads((ov.parent / "metrics.json").read_text())
         fits["fits"][name] = {"values": read_overlay(ov), "objective_start": m["objective_start"],
                               "objective_best": m["objective_best"], "failed_simulations": m["failed_simulations"],
-                              "evaluations": m["evaluations"]}
+                              "evaluations": m["evaluations"], "uncertainty": m.get("uncertainty")}
     return fits
 
 

@@ -4,11 +4,12 @@ baseline valve fits applied."""
 
 import matplotlib.pyplot as plt
 
-from _common import (CONF, MEASURED, OUT, baseline, checkpoint, config, read_overlay, seed_for, stage, staged_dir,
+from _common import (measured_dir, CONF, OUT, baseline, checkpoint, config, read_overlay, seed_for, stage, staged_dir,
                      write_fit)
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
+from dampertwin.fitting import study_uncertainty
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol, recording_rates
 from dampertwin.report import simulate_from_record
@@ -23,7 +24,7 @@ def main() -> None:
         d = d.with_overrides(read_overlay(OUT / "valves" / v / "overlay.yaml"))
     cal = yaml_load_file(CONF / "calibration" / "compliance.yaml")
     proto = load_protocol(CONF / "test" / "compliance.yaml")
-    meas, _ = read_frame(MEASURED / "compliance" / "baseline.parquet", "compliance", rate=recording_rates(proto))
+    meas, _ = read_frame(measured_dir() / "compliance" / "baseline.parquet", "compliance", rate=recording_rates(proto))
     seed = seed_for("compliance_fit")
     out = OUT / "compliance"
     bandwidth = proto.get("sensors", {}).get("force")
@@ -32,8 +33,9 @@ def main() -> None:
                          force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
+    unc = study_uncertainty("compliance", d, res.best, meas, cutoff=cal["input_cutoff"], force_bandwidth=bandwidth)
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "N*s", d.hash(), extra=res.best)
+        write_fit(tmp, res, meta, "N*s", d.hash(), extra={**res.best, "uncertainty": unc})
         fitted = d.with_overrides(res.best)
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
         name, g = runs(meas)[-1]

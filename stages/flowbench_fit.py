@@ -6,11 +6,13 @@
 
 import matplotlib.pyplot as plt
 
-from _common import CONF, MEASURED, OUT, baseline, checkpoint, choice, config, seed_for, stage, staged_dir, write_fit
+from _common import (CONF, OUT, baseline, checkpoint, choice, config, measured_dir, seed_for, stage, staged_dir,
+                     write_fit)
 from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
+from dampertwin.fitting import study_uncertainty
 from dampertwin.io import read_frame
 from dampertwin.simulation import simulate
 from dampertwin.protocols import build_runs, load_protocol, recording_rates
@@ -26,15 +28,16 @@ def main(name: str) -> None:
     cal = yaml_load_file(CONF / "calibration" / "valves.yaml")
     fb = load_protocol(CONF / "test" / "flowbench.yaml")
     bench = {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
-    meas, _ = read_frame(MEASURED / "flowbench" / f"{name}.parquet", "flowbench", rate=recording_rates(fb))
+    meas, _ = read_frame(measured_dir() / "flowbench" / f"{name}.parquet", "flowbench", rate=recording_rates(fb))
     out = OUT / "valves" / name
     seed = seed_for(f"flowbench_fit/{name}")
     res = fit_valve(d, valve, meas, cal, GASettings.from_config(cfg.profile.ga.valves), seed, bench=bench,
                     checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler)
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
+    unc = study_uncertainty("valve", d, res.best, meas, cutoff=cal["input_cutoff"], valve=valve, bench=bench)
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "Pa*s", d.hash())
+        write_fit(tmp, res, meta, "Pa*s", d.hash(), extra={"uncertainty": unc})
         run = next(r for r in build_runs(fb) if r.bench_valve == valve)
         sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate,
                        bench=bench)

@@ -8,7 +8,7 @@ Time series -> results/approach1/sim/<case>/<test>.parquet."""
 
 import pandas as pd
 
-from _common import CONF, MEASURED, OUT, config, config_hash, stage
+from _common import CONF, OUT, config, config_hash, measured_dir, stage
 from dampertwin.design import load
 from dampertwin.io import read_frame, runs, write_frame
 from dampertwin.protocols import load_protocol, recording_rates
@@ -26,7 +26,7 @@ def main(case: str) -> None:
     cfg = config()
     tests = ["monosine", "random"] + (["curving"] if case == "baseline_1.6" else [])
     for test in tests:
-        src = MEASURED / test / f"{('baseline' if test == 'curving' else case)}.parquet"
+        src = measured_dir() / test / f"{('baseline' if test == 'curving' else case)}.parquet"
         proto = load_protocol(CONF / "test" / f"{test}.yaml")
         sensors = proto.get("sensors", {})
         meas, mmeta = read_frame(src, test, current_range=(design.pq_map.currents[0], design.pq_map.currents[-1]),

@@ -5,11 +5,13 @@ squares and GA fit of the AutoBushFD parameters on the random record
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from _common import CONF, MEASURED, OUT, baseline, checkpoint, choice, config, seed_for, stage, staged_dir, write_fit
+from _common import (CONF, OUT, baseline, checkpoint, choice, config, seed_for, stage, staged_dir,
+                     write_fit, measured_dir)
 from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
+from dampertwin.fitting import study_uncertainty
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol, recording_rates
 from dampertwin.report import simulate_from_record
@@ -23,7 +25,7 @@ def main(name: str) -> None:
         d = load_variant(CONF / "variant" / f"{TOP_MOUNTS[name]}.yaml").apply(d)
     cal = yaml_load_file(CONF / "calibration" / "topmount.yaml")
     proto = load_protocol(CONF / "test" / "topmount.yaml")
-    meas, _ = read_frame(MEASURED / "topmount" / f"{name}.parquet", "topmount", rate=recording_rates(proto))
+    meas, _ = read_frame(measured_dir() / "topmount" / f"{name}.parquet", "topmount", rate=recording_rates(proto))
     seed = seed_for(f"topmount_fit/{name}")
     out = OUT / "topmount" / name
     bandwidth = proto.get("sensors", {}).get("force")
@@ -33,8 +35,11 @@ def main(name: str) -> None:
     best = {**res.best, "top_mount.F_LD": coef}
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept}
+    d_fit = d.with_overrides({"top_mount.F_LD": coef})  # the static curve the GA ran with
+    unc = study_uncertainty("topmount", d_fit, res.best, meas, cutoff=cal["input_cutoff"], force_bandwidth=bandwidth,
+                            run=cal["dynamic_run"])
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "N*s", d.hash(), best=best)
+        write_fit(tmp, res, meta, "N*s", d.hash(), best=best, extra={"uncertainty": unc})
         fitted = d.with_overrides(best)
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
         g = dict(runs(meas))["random"]

@@ -48,10 +48,60 @@ def ci_study(tmp_path_factory):
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}")
     _run(["git", "init", "-q"], repo, env)
     (repo / "params.yaml").write_text((repo / "params.yaml").read_text().replace("profile: full", "profile: ci"))
-    out1 = _run(["dvc", "repro", "-q"], repo, env)
+    # the first run records every file each stage's processes open (tests/tracer/sitecustomize.py)
+    trace = _trace_dir(repo)
+    trace.mkdir()
+    traced = dict(env, DAMPERTWIN_TRACE=str(trace),
+                  PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT / "tests" / "tracer"), env.get("PYTHONPATH")])))
+    out1 = _run(["dvc", "repro", "-q"], repo, traced)
     out2 = _run(["dvc", "repro"], repo, env)
     status = _run(["dvc", "status"], repo, env)
     return repo, out1, out2, status
+
+
+def _trace_dir(repo: Path) -> Path:
+    return repo.parent / f"{repo.name}_trace"
+
+
+def _traced_reads(repo: Path) -> dict[str, set[Path]]:
+    """stage command (script basename + args) -> project files it read."""
+    reads: dict[str, set[Path]] = {}
+    skip = (repo / ".dvc", repo / ".git")
+    for log in _trace_dir(repo).glob("*.log"):
+        for line in log.read_text().splitlines():
+            stage, mode, path = line.split("\t")
+            p = Path(path)
+            if mode != "r" or not p.is_relative_to(repo) or any(p.is_relative_to(s) for s in skip):
+                continue
+            if "__pycache__" in p.parts or not p.is_file():
+                continue
+            reads.setdefault(stage, set()).add(p)
+    return reads
+
+
+@pytest.mark.slow  # runs the ci-profile pipeline (minutes)
+def test_every_stage_reads_only_declared_deps_params_and_outs(ci_study):
+    """DVC wiring is exact: each file a stage's processes opened lies under a
+    declared dep, params file or out of that stage (traced in the ci run)."""
+    from dvc.repo import Repo
+
+    repo, *_ = ci_study
+    reads = _traced_reads(repo)
+    allowed = {}
+    with Repo(str(repo)) as r:
+        for st in r.index.stages:
+            argv = st.cmd.split()[1:]
+            key = " ".join([Path(argv[0]).name, *argv[1:]])
+            allowed[key] = (st.addressing, [Path(d.fs_path) for d in st.deps] + [Path(o.fs_path) for o in st.outs])
+    assert set(reads) <= set(allowed), set(reads) - set(allowed)
+    assert len(reads) >= 30, sorted(reads)  # every stage ran traced
+    problems = []
+    for key, files in sorted(reads.items()):
+        name, ok = allowed[key]
+        for f in sorted(files):
+            if not any(f == a or f.is_relative_to(a) for a in ok):
+                problems.append(f"{name}: reads {f.relative_to(repo)} (not a declared dep/param/out)")
+    assert not problems, "\n".join(problems)
 
 
 def _numeric_equal(a: pd.DataFrame, b: pd.DataFrame):
@@ -63,6 +113,7 @@ def _numeric_equal(a: pd.DataFrame, b: pd.DataFrame):
             assert list(a[c]) == list(b[c]), c
 
 
+@pytest.mark.slow  # runs the ci-profile pipeline (minutes)
 def test_ci_profile_reproduces_reference_tables(ci_study):
     repo, *_ = ci_study
     for t in ("table_6_5", "table_6_6"):
@@ -72,6 +123,7 @@ def test_ci_profile_reproduces_reference_tables(ci_study):
         _numeric_equal(got, ref)
 
 
+@pytest.mark.slow  # runs the ci-profile pipeline (minutes)
 def test_every_fit_beats_the_uncalibrated_design(ci_study):
     repo, *_ = ci_study
     fits = json.loads((repo / "results" / "approach1" / "fits.json").read_text())
@@ -81,12 +133,14 @@ def test_every_fit_beats_the_uncalibrated_design(ci_study):
         assert f["objective_best"] < f["objective_start"], name
 
 
+@pytest.mark.slow  # runs the ci-profile pipeline (minutes)
 def test_second_repro_does_nothing_and_status_is_clean(ci_study):
     _, _, out2, status = ci_study
     assert "Running stage" not in out2
     assert "up to date" in status.lower() or status.strip() == ""
 
 
+@pytest.mark.slow  # runs the ci-profile pipeline (minutes)
 def test_tables_and_plots_are_written(ci_study):
     repo, *_ = ci_study
     a1 = repo / "results" / "approach1"

@@ -22,7 +22,7 @@ from dampertwin.model.damper import RHS
 from dampertwin.model.params import pack
 from dampertwin.model.sparsity import pattern, probe_states
 from dampertwin.model.valves import V, V_SIZE, shim_pressure_force, stiffness_force
-from dampertwin.solver import OK, RHS as RHS_TYPE, fd_jacobian, integrate, Sparsity  # noqa: F401
+from dampertwin.solver import OK, Sparsity, fd_jacobian
 
 from conftest import BASELINE, ROOT
 

@@ -33,6 +33,7 @@ def two_variants(tmp_path_factory):
     return tmp / "t", r
 
 
+@pytest.mark.slow  # a Hydra multirun
 def test_two_variant_sweep_writes_artifacts_with_metadata(two_variants):
     d, _ = two_variants
     base = d / "baseline_1.6"
@@ -45,6 +46,7 @@ def test_two_variant_sweep_writes_artifacts_with_metadata(two_variants):
     assert np.isfinite(k["rebound peak [g]"].iloc[0]) and k["compression peak [g]"].iloc[0] < 0
 
 
+@pytest.mark.slow  # a Hydra multirun
 def test_failing_variant_is_reported_and_others_complete(two_variants):
     d, r = two_variants
     failed = json.loads((d / "lower_base_intake" / FAILED).read_text())
@@ -56,6 +58,7 @@ def test_failing_variant_is_reported_and_others_complete(two_variants):
     assert "FAILED" in r.stdout + r.stderr
 
 
+@pytest.mark.slow  # a Hydra multirun
 def test_rerun_skips_completed_and_retries_failed(two_variants):
     d, _ = two_variants
     before = (d / "baseline_1.6" / "monosine.parquet").stat().st_mtime_ns
@@ -70,6 +73,7 @@ def test_rerun_skips_completed_and_retries_failed(two_variants):
                                                             tab.set_index("variant").loc["baseline_1.6", "rebound peak [g]"])
 
 
+@pytest.mark.slow  # a Hydra multirun
 def test_generic_ofat_factor_levels(tmp_path):
     sweep(tmp_path, "factor=base_intake.a", "level=-0.2,0.2")
     d = tmp_path / "t"

@@ -1,4 +1,4 @@
-"""Command line: ``dampertwin design show|check``."""
+"""Command line: ``dampertwin design show|check``, ``plot``, ``import``, ``fit``."""
 
 from __future__ import annotations
 
@@ -76,17 +76,25 @@ def _main(argv: list[str]) -> int:
     chk.add_argument("path")
     plot = sub.add_parser("plot", help="PNG plots of one design case: P-Q, F-V / F-x, mono-sine, PSD")
     plot.add_argument("case", help="design case, a file name of conf/variant/ (e.g. baseline_1.6)")
-    plot.add_argument("--data", default="data/measured", help="measured data folder")
+    plot.add_argument("--measured", "--data", dest="data", default=None,
+                      help="measured data folder to overlay (e.g. data/measured or data/own); default none")
+    plot.add_argument("--design", dest="design_path", default=None,
+                      help="design file to draw (e.g. results/approach1/designs/CASE.yaml, a calibrated one); "
+                           "default: conf/design/baseline.yaml + the case's variant")
     plot.add_argument("--out", default="results/plots", help="output folder (PNG files go to OUT/CASE/)")
     plot.add_argument("--conf", default="conf", help="configuration folder")
+    _add_import_fit(sub)
     args = ap.parse_args(argv)
+    if args.cmd in ("import", "fit"):
+        return _run_import_fit(args)
     if args.cmd == "plot":
         from .plotting import plot_case
 
         try:
-            for p in plot_case(args.case, Path(args.conf), Path(args.data), Path(args.out)):
+            for p in plot_case(args.case, Path(args.conf), Path(args.data) if args.data else None, Path(args.out),
+                               Path(args.design_path) if args.design_path else None):
                 print(p)
-        except (FileNotFoundError, ValueError) as e:
+        except (FileNotFoundError, ValueError, DesignError) as e:
             print(f"dampertwin plot: {e}", file=sys.stderr)
             return 1
         return 0
@@ -100,6 +108,51 @@ def _main(argv: list[str]) -> int:
         print(format_table(design, args.type))
     else:
         print(f"{args.path}: OK ({len(design.parameters)} parameters, hash {design.hash()})")
+    return 0
+
+
+def _add_import_fit(sub) -> None:
+    imp = sub.add_parser("import", help="convert your own measurement (any common units) into the project schema")
+    imp.add_argument("src", help="source file (.csv or .parquet)")
+    imp.add_argument("--map", required=True, dest="mapping", help="column mapping YAML (quantity + unit per column)")
+    imp.add_argument("--out", required=True, help="output Parquet, e.g. data/own/monosine/baseline_1.6.parquet")
+    imp.add_argument("--protocol", help="test schema to check (default: the mapping's or the output folder name)")
+    fit = sub.add_parser("fit", help="fit one submodel on a bench record: valve | compliance | topmount | friction")
+    fit.add_argument("submodel", choices=("valve", "compliance", "topmount", "friction"))
+    fit.add_argument("--data", required=True, help="the record to fit (Parquet or CSV, project schema)")
+    fit.add_argument("--design", default=str(DEFAULT_DESIGN), help="design YAML (start values, constants)")
+    fit.add_argument("--out", required=True, help="output folder: fit.json and PNG plots")
+    fit.add_argument("--predict", nargs="*", default=[], help="records only predicted (NRMSE reported)")
+    fit.add_argument("--bounds", help="search-space YAML (parameters: [{name, bounds | window, scale}])")
+    fit.add_argument("--param", action="append", default=[], metavar="NAME=LO:HI",
+                     help="search bounds on the command line (repeatable; overrides --bounds)")
+    fit.add_argument("--valve", help="valve of a 'valve' fit (piston_rebound, piston_intake, ...)")
+    fit.add_argument("--current", type=float, help="active-valve current [A] (compliance; default from the record)")
+    fit.add_argument("--population", type=int, default=None, help="GA population (default 20)")
+    fit.add_argument("--generations", type=int, default=None, help="GA generations (default 15)")
+    fit.add_argument("--seed", type=int, default=0)
+
+
+def _run_import_fit(args) -> int:
+    from .io import DataError
+
+    if args.cmd == "import":
+        from .importer import MappingError, import_measurement
+
+        try:
+            print(import_measurement(args.src, args.mapping, args.out, protocol=args.protocol))
+        except (MappingError, DataError) as e:
+            print(f"dampertwin import: {e}", file=sys.stderr)
+            return 1
+        return 0
+    from .fitting import FitError, run_fit_cli
+
+    try:
+        path = run_fit_cli(args)
+    except (FitError, DataError, DesignError) as e:
+        print(f"dampertwin fit: {e}", file=sys.stderr)
+        return 1
+    print(path)
     return 0
 
 

@@ -1,5 +1,8 @@
 """``dampertwin plot CASE``: the standard plots of one design case, simulated
-with the nominal design of the case and overlaid on the measurements."""
+with the nominal design of the case (baseline + the case's variant) or a
+given design file (e.g. a calibrated one, results/approach1/designs/CASE.yaml),
+overlaid on measurements when a measured folder is given. Every title names
+the design drawn and the measurement source."""
 
 from __future__ import annotations
 
@@ -16,17 +19,42 @@ from .variants import VALVE_DESIGNS, load_variant
 CURVING_VELOCITIES = (0.1, 0.3, 0.5, 1.0, 1.5)  # subset of the protocol, for speed
 
 
-def _maybe(path: Path, protocol: str):
-    return read_frame(path, protocol)[0] if path.is_file() else None
+def _maybe(path: Path | None, protocol: str):
+    return read_frame(path, protocol)[0] if path is not None and path.is_file() else None
 
 
-def plot_case(case: str, conf: Path, data: Path, out: Path) -> list[Path]:
+def _p(data: Path | None, *parts: str) -> Path | None:
+    return None if data is None else data.joinpath(*parts)
+
+
+def _source_label(data: Path | None) -> str:
+    """'measured: DIR (SYNTHETIC)' / 'measured: DIR' / 'no measured data'."""
+    if data is None or not Path(data).is_dir():
+        return "no measured data"
+    from .io import read_meta
+
+    files = sorted(Path(data).glob("*/*.parquet"))
+    synthetic = any(read_meta(f).get("synthetic") for f in files[:3])
+    return f"measured: {data}" + (" (SYNTHETIC lab data)" if synthetic else "")
+
+
+def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: Path | None = None) -> list[Path]:
+    """PNG plots of one design case; ``design_path`` draws that design file
+    instead of the nominal baseline + variant; ``data`` (a measured folder,
+    <test>/<file>.parquet) is overlaid when given."""
     vpath = conf / "variant" / f"{case}.yaml"
     if not vpath.is_file():
         known = ", ".join(sorted(p.stem for p in (conf / "variant").glob("*.yaml")))
         raise FileNotFoundError(f"no design case {case!r} ({vpath} missing); known: {known}")
     variant = load_variant(vpath)
-    design = variant.apply(load_design(conf / "design" / "baseline.yaml"))
+    if design_path is not None:
+        design = load_design(design_path)
+        dlabel = f"design {design_path} ({design.hash()[:8]})"
+    else:
+        design = variant.apply(load_design(conf / "design" / "baseline.yaml"))
+        dlabel = f"nominal design: {conf / 'design' / 'baseline.yaml'} + variant {case} ({design.hash()[:8]})"
+    data = Path(data) if data is not None else None
+    tag = f"\n{dlabel}; {_source_label(data)}"
     protocols = load_all(conf / "test")
     out = out / case
     out.mkdir(parents=True, exist_ok=True)
@@ -44,13 +72,13 @@ def plot_case(case: str, conf: Path, data: Path, out: Path) -> list[Path]:
     for run in build_runs(fb):
         valve = run.bench_valve
         vd = next((n for n, (v, c) in VALVE_DESIGNS.items() if v == valve and c == case), valve)
-        meas_df = _maybe(data / "flowbench" / f"{vd}.parquet", "flowbench")
+        meas_df = _maybe(_p(data, "flowbench", f"{vd}.parquet"), "flowbench")
         if meas_df is not None:
             meas[valve] = meas_df
         r = report.simulate(design, run.excitation, "valve", bench_valve=valve, rate=run.rate,
                             bench={"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]})
         sim[valve] = r.to_frame()
-    save(report.pq_figure(meas, sim, f"{case}: flow-bench P-Q (solid measured, dashed simulated)"), "pq")
+    save(report.pq_figure(meas, sim, f"{case}: flow-bench P-Q (solid measured, dashed simulated)" + tag), "pq")
 
     # F-V and F-x at the three currents
     res = {}
@@ -58,25 +86,25 @@ def plot_case(case: str, conf: Path, data: Path, out: Path) -> list[Path]:
         if run.meta["velocity [m/s]"] in CURVING_VELOCITIES:
             r = report.simulate(design, run.excitation, "damper", current=run.current, rate=run.rate)
             res.setdefault(run.current, []).append((run.name, report.frame(r)))
-    base_curving = _maybe(data / "curving" / "baseline.parquet", "curving")
-    save(report.curving_figure(res, base_curving, f"{case}: curving test (solid: measured baseline)"), "curving")
+    base_curving = _maybe(_p(data, "curving", "baseline.parquet"), "curving")
+    save(report.curving_figure(res, base_curving, f"{case}: curving test (solid: measured baseline)" + tag), "curving")
 
     # mono-sine, driven by the recorded displacement when a measurement exists
-    ms = _maybe(data / "monosine" / f"{case}.parquet", "monosine")
+    ms = _maybe(_p(data, "monosine", f"{case}.parquet"), "monosine")
     f = protocols["monosine"]["frequency"]
     if ms is not None:
         sim_ms = report.simulate_from_record(design, runs(ms)[0][1], "module", variant.current)
     else:
         run = next(r for r in build_runs(protocols["monosine"]) if abs(r.current - variant.current) < 1e-9)
         sim_ms = report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate)
-    save(report.monosine_figure(sim_ms.to_frame(), ms, f, f"{case}: 13 Hz mono-sine at {variant.current:g} A"), "monosine")
+    save(report.monosine_figure(sim_ms.to_frame(), ms, f, f"{case}: 13 Hz mono-sine at {variant.current:g} A" + tag), "monosine")
 
     # random road noise PSD
-    rnd = _maybe(data / "random" / f"{case}.parquet", "random")
+    rnd = _maybe(_p(data, "random", f"{case}.parquet"), "random")
     if rnd is not None:
         sim_r = report.frame(report.simulate_from_record(design, runs(rnd)[0][1], "module", variant.current))
     else:
         run = next(r for r in build_runs(protocols["random"], 0) if abs(r.current - variant.current) < 1e-9)
         sim_r = report.frame(report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate))
-    save(report.psd_figure(sim_r, rnd, f"{case}: random road noise at {variant.current:g} A"), "psd")
+    save(report.psd_figure(sim_r, rnd, f"{case}: random road noise at {variant.current:g} A" + tag), "psd")
     return written

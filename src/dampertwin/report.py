@@ -88,7 +88,10 @@ def monosine_figure(sim: pd.DataFrame, measured: pd.DataFrame | None, frequency:
         mm = tm >= tm[-1] - 1.5 / frequency
         ax.plot(tm[mm], measured["rod acceleration [m/s^2]"].to_numpy()[mm] / kpi.G, color="tab:purple", lw=0.8,
                 alpha=0.7, label="measured")
+    _mark_kpi_peaks(ax, sim, measured, frequency)
     for k, (valve, lab) in enumerate(VALVE_LABELS.items()):
+        if f"lift {valve} [m]" not in sim:
+            continue
         lift = sim[f"lift {valve} [m]"].to_numpy()[m]
         axv.fill_between(t[m], k, k + 0.8 * (lift > 0), color=VALVE_COLOURS[valve], step="mid", label=lab)
         opens = t[m][1:][(lift[1:] > 0) & (lift[:-1] <= 0)]
@@ -103,6 +106,36 @@ def monosine_figure(sim: pd.DataFrame, measured: pd.DataFrame | None, frequency:
     axv2.plot(t[m], vel[m], color="0.5", lw=0.8)
     axv2.set_ylabel("tube velocity [m/s]")
     return fig
+
+
+def kpi_peak_points(df: pd.DataFrame, frequency: float) -> tuple[float, float, dict[str, tuple[float, float]]]:
+    """The table-6.5 KPI window (the last cycle, kpi.last_cycle) and the
+    chosen peak of each half cycle, as kpi.rod_acceleration_peaks picks it.
+    Returns (window start [s], window end [s], {half: (time [s], value [g])})."""
+    cyc = kpi.last_cycle(df, frequency)
+    t = cyc["time [s]"].to_numpy()
+    a = cyc["rod acceleration [m/s^2]"].to_numpy() / kpi.G
+    s = kpi.tube_velocity_sign(cyc, frequency)
+    out = {}
+    for name, sgn in (("rebound", 1), ("compression", -1)):
+        if np.any(s == sgn):
+            i = int(np.argmax(np.abs(np.where(s == sgn, a, 0.0))))
+            out[name] = (float(t[i]), float(a[i]))
+    return float(t[0]), float(t[-1]), out
+
+
+def _mark_kpi_peaks(ax, sim: pd.DataFrame, measured: pd.DataFrame | None, frequency: float) -> None:
+    """Shade the KPI window and mark the chosen rebound / compression peaks."""
+    for label, df, colour in (("simulated", sim, "k"), ("measured", measured, "tab:purple")):
+        if df is None:
+            continue
+        t0, t1, peaks = kpi_peak_points(df, frequency)
+        if label == "simulated":
+            ax.axvspan(t0, t1, color="tab:green", alpha=0.08, label="KPI window (last cycle)")
+        for half, (tp, ap) in peaks.items():
+            ax.plot(tp, ap, "v" if ap < 0 else "^", color=colour, ms=8, mfc="none", mew=1.5)
+            ax.annotate(f"{half} {ap:+.2f} g", (tp, ap), textcoords="offset points", xytext=(6, 6 if ap > 0 else -12),
+                        fontsize=7, color=colour)
 
 
 def psd_figure(sim_df: pd.DataFrame, measured: pd.DataFrame | None, title: str):
@@ -141,4 +174,4 @@ def frame(result) -> pd.DataFrame:
     return f
 
 
-__all__ = ["pq_figure", "curving_figure", "monosine_figure", "psd_figure", "simulate_from_record", "frame"]
+__all__ = ["pq_figure", "curving_figure", "monosine_figure", "kpi_peak_points", "psd_figure", "simulate_from_record", "frame"]

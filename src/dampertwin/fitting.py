@@ -1,0 +1,715 @@
+"""One-command submodel fits on a bench record (``dampertwin fit ...``).
+
+- ``fit_valve``      a valve's stiffness (and shim friction) on a flow-bench
+                     P-Q record (thesis eq. 6.1), GA of calibration/approach1;
+- ``fit_compliance`` gas content and oil bulk modulus on a damper-level sine
+                     test (eq. 6.2), same GA;
+- ``fit_topmount``   the top-mount parameters on a top-mount record (eq. 6.3),
+                     optionally the static curve by least squares first;
+- ``fit_friction``   the LuGre rod-friction law (eq. 4.38-4.41) on a
+                     friction-device record (time, displacement, force), by a
+                     friction-only simulation (``simulate_friction``) and
+                     scipy least squares, with a Coulomb + viscous baseline.
+
+Search bounds come from a config (YAML ``parameters:`` items, as in
+conf/calibration/) or ``name=lo:hi`` strings, never from the damper's
+design bounds. Each fit returns a dict (also written as ``out/fit.json``):
+fitted parameters with Gauss-Newton standard errors and 95 % intervals from
+the residual Jacobian at the optimum (inflated for autocorrelated
+residuals: effective sample size from the lag-1 autocorrelation), the
+objective, NRMSE per file (fitted and predicted), and plots in ``out/``.
+
+NRMSE = RMS(simulated - measured) / (max - min of measured), per file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from numba import njit
+
+from .design import Design, load as load_design, yaml_load
+from .io import read_frame, runs
+from .model.rod_friction import lugre, stribeck
+
+FRICTION_PARAMS = ("F_c", "F_s", "k_b", "s2", "c_comp", "vd", "a_s", "alpha_s")
+FRICTION_KEYS = {"F_c": "rod_friction.F_c", "F_s": "rod_friction.F_s", "k_b": "rod_friction.k_b",
+                 "s2": "constants.s2", "c_comp": "constants.c_comp", "vd": "constants.vd",
+                 "a_s": "constants.a_s", "alpha_s": "constants.alpha_s"}
+CI_Z = 1.959963984540054  # two-sided 95 % normal quantile
+DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mutation_probability": 10}
+
+
+class FitError(ValueError):
+    """A fit's inputs are unusable; the message names the file / key."""
+
+
+# ---------------------------------------------------------------- friction model
+
+def lugre_force(dv, z, *, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s):
+    """LuGre rod friction (eq. 4.38-4.41) with keyword arguments named as in
+    the design YAML. dv: sliding velocity [m/s], z: bristle deflection [m].
+    Returns (dz/dt [m/s], force [N], positive opposing positive dv)."""
+    return lugre(float(z), float(dv), k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s)
+
+
+@njit(cache=True)
+def _friction_series(t, v, z0, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s, substeps):
+    """Friction force on the samples of t for the velocity v (linear between
+    samples). The bristle state advances with the exact solution of
+    dz/dt = v - k_b |v| / g(v) z for v frozen over each substep (stable for
+    any stiffness k_b)."""
+    n = len(t)
+    F = np.empty(n)
+    z = z0
+    for i in range(n):
+        dz, F[i] = lugre(z, v[i], k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s)
+        if i == n - 1:
+            break
+        h = (t[i + 1] - t[i]) / substeps
+        for k in range(substeps):
+            vm = v[i] + (v[i + 1] - v[i]) * (k + 0.5) / substeps
+            a = k_b * abs(vm) / stribeck(vm, F_c, F_s, a_s, alpha_s)
+            if a * h < 1e-12:
+                z += vm * h
+            else:
+                zs = vm / a
+                z = zs + (z - zs) * math.exp(-a * h)
+    return F
+
+
+def simulate_friction(t, velocity, *, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s, z0: float = 0.0,
+                      substeps: int = 4) -> np.ndarray:
+    """Friction-only configuration: the LuGre law driven by a prescribed
+    sliding velocity [m/s] on times t [s]. Returns the force [N] per sample."""
+    t = np.ascontiguousarray(t, float)
+    v = np.ascontiguousarray(velocity, float)
+    return _friction_series(t, v, float(z0), float(F_c), float(F_s), float(k_b), float(s2), float(c_comp),
+                            float(vd), float(a_s), float(alpha_s), int(substeps))
+
+
+def record_velocity(df: pd.DataFrame) -> np.ndarray:
+    """Sliding velocity [m/s] of a record: the ``velocity [m/s]`` column if
+    present, else the displacement differentiated (central differences)."""
+    if "velocity [m/s]" in df:
+        return df["velocity [m/s]"].to_numpy(float)
+    if "displacement [m]" not in df:
+        raise FitError("record has neither 'velocity [m/s]' nor 'displacement [m]'")
+    return np.gradient(df["displacement [m]"].to_numpy(float), df["time [s]"].to_numpy(float))
+
+
+# ---------------------------------------------------------------- search spaces
+
+def parse_param_args(items: list[str]) -> list[dict]:
+    """``name=lo:hi[:log]`` strings -> search-space items (absolute bounds)."""
+    out = []
+    for s in items:
+        try:
+            name, rng = s.split("=", 1)
+            parts = rng.split(":")
+            lo, hi = float(parts[0]), float(parts[1])
+            scale = parts[2] if len(parts) > 2 else "lin"
+        except (ValueError, IndexError):
+            raise FitError(f"--param {s!r}: expected name=lo:hi or name=lo:hi:log") from None
+        key = "key" if "." in name else "name"
+        out.append({key: name.strip(), "bounds": [lo, hi], "scale": scale})
+    return out
+
+
+def load_search_config(path: str | os.PathLike | None) -> dict:
+    if path is None:
+        return {}
+    p = Path(path)
+    if not p.is_file():
+        raise FitError(f"{p}: bounds file not found")
+    doc = yaml_load(p.read_text())
+    if not isinstance(doc, dict):
+        raise FitError(f"{p}: expected a mapping with a 'parameters:' list")
+    return doc
+
+
+def _merge_items(cfg_items: list | None, cli_items: list[dict]) -> list:
+    """Command-line items replace config items of the same parameter."""
+    def ident(it):
+        return it.get("key", it.get("name")) if isinstance(it, dict) else None
+
+    names = {ident(i) for i in cli_items}
+    return [i for i in (cfg_items or []) if ident(i) not in names] + cli_items
+
+
+# ---------------------------------------------------------------- statistics
+
+def nrmse(measured: np.ndarray, simulated: np.ndarray) -> float:
+    """RMS error normalised by the measured range (max - min)."""
+    m, s = np.asarray(measured, float), np.asarray(simulated, float)
+    rng = float(np.ptp(m))
+    if not np.all(np.isfinite(s)) or rng == 0:
+        return float("nan")
+    return float(np.sqrt(np.mean((s - m) ** 2)) / rng)
+
+
+def effective_n(residual: np.ndarray) -> float:
+    """Effective sample size of an autocorrelated residual (AR(1)):
+    n (1 - r1) / (1 + r1), r1 the lag-1 autocorrelation (>= 0)."""
+    r = np.asarray(residual, float) - np.mean(residual)
+    n = len(r)
+    den = float(np.dot(r, r))
+    r1 = float(np.dot(r[:-1], r[1:]) / den) if den > 0 and n > 2 else 0.0
+    r1 = min(max(r1, 0.0), 0.999)
+    return max(n * (1 - r1) / (1 + r1), 2.0)
+
+
+def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], values: np.ndarray) -> dict:
+    """Covariance s^2 (J^T J)^-1 at the optimum, s^2 = SSR / (n_eff - p),
+    scaled by n / n_eff for autocorrelated residuals. J: d residual / d
+    parameter (physical units). Returns per-parameter std, 95 % interval and
+    the correlation matrix; 'identifiable' is False for a singular J or a
+    relative std > 1."""
+    n, p = J.shape
+    ne = effective_n(residual)
+    dof = max(ne - p, 1.0)
+    s2 = float(np.dot(residual, residual)) / n * ne / dof  # per-sample variance, bias-corrected on n_eff
+    col = np.linalg.norm(J, axis=0)
+    col[col == 0] = 1.0
+    Js = J / col
+    JtJ = Js.T @ Js
+    cond = float(np.linalg.cond(JtJ)) if p else 1.0
+    try:
+        cov = np.linalg.pinv(JtJ, rcond=1e-12) / np.outer(col, col) * s2 * (n / ne)
+    except np.linalg.LinAlgError:
+        cov = np.full((p, p), np.nan)
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(std, std)
+    out = {"method": "Gauss-Newton covariance s^2 (J^T J)^-1 at the optimum, residual autocorrelation "
+                     "accounted for by an effective sample size (AR(1)); 95 % normal intervals",
+           "n": n, "n_effective": ne, "condition_number": cond, "parameters": {}, "correlation": {}}
+    for i, k in enumerate(names):
+        rel = float(std[i] / abs(values[i])) if values[i] != 0 else float("inf")
+        out["parameters"][k] = {"value": float(values[i]), "std": float(std[i]),
+                                "ci95": [float(values[i] - CI_Z * std[i]), float(values[i] + CI_Z * std[i])],
+                                "rel_std": rel, "identifiable": bool(np.isfinite(rel) and rel < 1.0
+                                                                     and col[i] > 0 and cond < 1e12)}
+        out["correlation"][k] = {kk: (float(corr[i, j]) if np.isfinite(corr[i, j]) else None)
+                                 for j, kk in enumerate(names)}
+    return out
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _write_json(path: Path, obj) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(obj, indent=2, sort_keys=False, default=float) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
+def _read(path, protocol=None) -> pd.DataFrame:
+    return read_frame(Path(path), protocol)[0]
+
+
+# ---------------------------------------------------------------- friction fit
+
+def _friction_bounds(df: pd.DataFrame, v: np.ndarray) -> list[dict]:
+    """Default search space from the record's magnitudes (not the damper's)."""
+    fmax = float(np.max(np.abs(df["force [N]"].to_numpy())))
+    vmax = float(np.max(np.abs(v))) or 1.0
+    return [{"name": "F_c", "bounds": [0.0, 1.5 * fmax]}, {"name": "F_s", "bounds": [0.0, 2.0 * fmax]},
+            {"name": "k_b", "bounds": [fmax / 1e-3, fmax / 1e-7], "scale": "log"},
+            {"name": "s2", "bounds": [0.0, 2.0 * fmax / vmax]}]
+
+
+def _friction_specs(items: list, where: str):
+    from .calibration.ga import ParamSpec
+
+    specs = []
+    for i, it in enumerate(items):
+        nm = it.get("name", it.get("key")) if isinstance(it, dict) else None
+        nm = nm.split(".")[-1] if isinstance(nm, str) else nm
+        if nm not in FRICTION_PARAMS:
+            raise FitError(f"{where}: item {i} ({it!r}): unknown friction parameter; expected one of "
+                           f"{', '.join(FRICTION_PARAMS)}")
+        if "bounds" not in it:
+            raise FitError(f"{where}: item {i} ({nm}): friction fits need absolute 'bounds: [lo, hi]'")
+        lo, hi = map(float, it["bounds"])
+        scale = it.get("scale", "lin")
+        if not lo < hi or (scale == "log" and lo <= 0):
+            raise FitError(f"{where}: item {i} ({nm}): bad interval [{lo}, {hi}] for scale {scale}")
+        specs.append(ParamSpec(nm, lo, hi, scale))
+    return specs
+
+
+def coulomb_viscous_fit(v: np.ndarray, F: np.ndarray) -> dict:
+    """Baseline F = F_c sign(v) + c v by linear least squares."""
+    A = np.column_stack([np.sign(v), v])
+    (fc, c), *_ = np.linalg.lstsq(A, F, rcond=None)
+    return {"F_c": float(fc), "c": float(c), "prediction": A @ [fc, c]}
+
+
+def fit_friction(data, *, design: Design | str | os.PathLike | None = None, bounds: list[dict] | None = None,
+                 predict=(), out: str | os.PathLike | None = None, seed: int = 0, starts: int = 8,
+                 fixed: dict | None = None) -> dict:
+    """Fit the LuGre law to a friction record (``time [s]``, ``displacement
+    [m]``, ``force [N]``, optional ``velocity [m/s]``; force positive
+    opposing positive velocity). ``bounds``: search items (name + bounds
+    [+ scale]); default F_c, F_s, k_b, s2 over ranges set by the record's
+    force and velocity magnitudes. Parameters not searched come from
+    ``fixed``, then from ``design`` (default conf baseline values).
+    Multi-start scipy least squares on the force residual."""
+    from scipy.optimize import least_squares
+    from scipy.stats import qmc
+
+    paths = [Path(data)] + [Path(p) for p in predict]
+    frames = [_read(p) for p in paths]
+    for p, f in zip(paths, frames):
+        for c in ("time [s]", "force [N]"):
+            if c not in f:
+                raise FitError(f"{p}: missing column {c!r} (friction record)")
+    d = design if isinstance(design, Design) else load_design(design or _default_design())
+    base = {k: float(d[FRICTION_KEYS[k]]) for k in FRICTION_PARAMS}
+    base.update({k: float(v) for k, v in (fixed or {}).items()})
+    df = frames[0]
+    t = df["time [s]"].to_numpy(float)
+    v = record_velocity(df)
+    Fm = df["force [N]"].to_numpy(float)
+    specs = _friction_specs(bounds or _friction_bounds(df, v), "friction search space")
+    names = [s.key for s in specs]
+
+    def params(g):
+        return {**base, **{s.key: float(s.to_value(gi)) for s, gi in zip(specs, g)}}
+
+    def resid(g, tt=t, vv=v, FF=Fm):
+        return simulate_friction(tt, vv, **params(g)) - FF
+
+    rng = np.random.default_rng(seed)
+    sampler = qmc.LatinHypercube(d=len(specs), seed=rng)
+    x0s = sampler.random(max(starts, 1))
+    best = None
+    for x0 in x0s:
+        r = least_squares(resid, x0, bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-4, max_nfev=200 * len(specs))
+        if best is None or r.cost < best.cost:
+            best = r
+    p_best = params(best.x)
+    values = np.array([p_best[k] for k in names])
+    # Jacobian in physical units by central differences
+    r0 = resid(best.x)
+    J = np.empty((len(r0), len(names)))
+    for j, k in enumerate(names):
+        h = 1e-4 * max(abs(values[j]), 1e-12)
+        up, dn = dict(p_best), dict(p_best)
+        up[k] += h
+        dn[k] -= h
+        J[:, j] = (simulate_friction(t, v, **up) - simulate_friction(t, v, **dn)) / (2 * h)
+    ci = gauss_newton_ci(J, r0, names, values)
+    cvb = coulomb_viscous_fit(v, Fm)
+    files = {}
+    for p, f, role in zip(paths, frames, ["fitted"] + ["predicted"] * len(predict)):
+        vv = record_velocity(f)
+        FF = f["force [N]"].to_numpy(float)
+        sim = simulate_friction(f["time [s]"].to_numpy(float), vv, **p_best)
+        cv = np.column_stack([np.sign(vv), vv]) @ [cvb["F_c"], cvb["c"]]
+        files[str(p)] = {"role": role, "nrmse": nrmse(FF, sim), "nrmse_coulomb_viscous": nrmse(FF, cv),
+                         "sha256": _sha(p), "samples": len(FF)}
+    baseline = {"model": "F = F_c sign(v) + c v (linear least squares on the fitted file)",
+                "F_c [N]": cvb["F_c"], "c [N*s/m]": cvb["c"], "nrmse": nrmse(Fm, cvb["prediction"])}
+    result = {"submodel": "friction", "model": "LuGre with Stribeck curve, thesis eq. 4.38-4.41 (errata 34)",
+              "objective": {"name": "sum of squared force residuals / 2 [N^2]", "value": float(best.cost)},
+              "parameters": {k: p_best[k] for k in names}, "fixed": {k: base[k] for k in FRICTION_PARAMS
+                                                                    if k not in names},
+              "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs},
+              "uncertainty": ci, "files": files, "baseline": baseline,
+              "nrmse": files[str(paths[0])]["nrmse"], "optimizer": f"scipy least_squares, {len(x0s)} LHS starts"}
+    if out is not None:
+        out = Path(out)
+        _write_json(out / "fit.json", result)
+        _friction_plots(out, paths, frames, p_best, cvb)
+    return result
+
+
+def _friction_plots(out: Path, paths, frames, p, cvb) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    for i, (path, f) in enumerate(zip(paths, frames)):
+        t = f["time [s]"].to_numpy(float)
+        v = record_velocity(f)
+        F = f["force [N]"].to_numpy(float)
+        sim = simulate_friction(t, v, **p)
+        cv = np.column_stack([np.sign(v), v]) @ [cvb["F_c"], cvb["c"]]
+        fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), constrained_layout=True)
+        axes[0].plot(t, F, lw=0.8, label="measured")
+        axes[0].plot(t, sim, "--", lw=0.9, label=f"LuGre (NRMSE {nrmse(F, sim):.3f})")
+        axes[0].plot(t, cv, ":", lw=0.9, label=f"Coulomb + viscous (NRMSE {nrmse(F, cv):.3f})")
+        axes[0].set(xlabel="time [s]", ylabel="force [N]")
+        if "displacement [m]" in f:
+            x = f["displacement [m]"].to_numpy(float) * 1e3
+            axes[1].plot(x, F, lw=0.8, label="measured")
+            axes[1].plot(x, sim, "--", lw=0.9, label="LuGre")
+        axes[1].set(xlabel="displacement [mm]", ylabel="force [N]")
+        axes[2].plot(v, F, ".", ms=1.5, label="measured")
+        axes[2].plot(v, sim, ".", ms=1.5, label="LuGre")
+        axes[2].set(xlabel="velocity [m/s]", ylabel="force [N]")
+        for ax in axes:
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+        fig.suptitle(f"friction fit: {path.name} ({'fitted' if i == 0 else 'predicted'})")
+        fig.savefig(out / f"friction_{i}_{path.stem}.png", dpi=100)
+        plt.close(fig)
+
+
+# ---------------------------------------------------------------- model-based fits (GA)
+
+def _default_design() -> Path:
+    from .config import repo_root
+
+    try:
+        return repo_root() / "conf" / "design" / "baseline.yaml"
+    except FileNotFoundError:
+        raise FitError("no --design given and no dampertwin repository here for the baseline design") from None
+
+
+class _Problem:
+    """Records of one submodel test -> batch residuals of a design population."""
+
+    def __init__(self, design: Design, configuration: str, channel, cases_per_file: list, sim_kw: dict):
+        self.design, self.configuration, self.channel = design, configuration, channel
+        self.files = cases_per_file  # [(path, [(t, measured, excitation, extra), ...]), ...]
+        self.sim_kw = sim_kw
+
+    def simulate(self, rows: list[dict], which=None):
+        """{file index: [array(m, n_t) per case]} for designs with overrides ``rows``."""
+        from .simulation import simulate_batch
+
+        designs = [self.design.with_overrides(r) for r in rows]
+        out = {}
+        for fi, (_, cases) in enumerate(self.files):
+            if which is not None and fi not in which:
+                continue
+            out[fi] = []
+            for t, meas, ex, extra in cases:
+                _, ch, status = simulate_batch(designs, ex, self.configuration, rate=1.0 / (t[1] - t[0]),
+                                               duration=t[-1] - t[0], channels=list(self.channel.sources),
+                                               **self.sim_kw, **extra)
+                sim = np.asarray(self.channel(ch), float)[:, : len(t)]
+                sim[status != 0] = np.nan
+                out[fi].append(sim)
+        return out
+
+    def objective(self, keys):
+        from .calibration.approach1 import integral_abs_error
+
+        def f(X):
+            sims = self.simulate([dict(zip(keys, row)) for row in X], which={0})
+            J = np.zeros(len(X))
+            for (t, meas, _, _), sim in zip(self.files[0][1], sims[0]):
+                J += np.array([integral_abs_error(t, meas, s) for s in sim])
+            return J
+
+        return f
+
+
+def _residual_stack(problem: _Problem, sims, fi: int, row: int) -> np.ndarray:
+    return np.concatenate([s[row] - c[1] for s, c in zip(sims[fi], problem.files[fi][1])])
+
+
+def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> tuple[dict, dict]:
+    """Gauss-Newton intervals of ``best`` from the fitted file's residual:
+    one batch of simulations (the optimum + one forward step per parameter,
+    1e-3 relative, stepping inward at a search bound). Returns (ci, sims)."""
+    keys = list(best)
+    bounds = {s.key: (s.lo, s.hi) for s in (specs or [])}
+    rows, steps = [dict(best)], []
+    for k in keys:
+        r = dict(best)
+        lo, hi = bounds.get(k, (-np.inf, np.inf))
+        h = 1e-3 * abs(r[k]) if r[k] != 0 else 1e-3 * (hi - lo if np.isfinite(hi - lo) else 1.0)
+        if r[k] + h > hi:
+            h = -h
+        r[k] += h
+        rows.append(r)
+        steps.append(h)
+    sims = problem.simulate(rows)
+    r0 = _residual_stack(problem, sims, 0, 0)
+    J = np.column_stack([(_residual_stack(problem, sims, 0, j + 1) - r0) / h for j, h in enumerate(steps)])
+    ok = np.all(np.isfinite(J), axis=1) & np.isfinite(r0)
+    return gauss_newton_ci(J[ok], r0[ok], keys, np.array([best[k] for k in keys])), sims
+
+
+def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, settings, seed, extra_meta: dict,
+               plot_fn=None, fixed_overrides: dict | None = None) -> dict:
+    from .calibration.ga import Evaluator, run_ga
+
+    keys = [s.key for s in specs]
+    x0 = {k: float(problem.design[k]) for k in keys}
+    res = run_ga(specs, Evaluator(problem.objective(keys)), settings, seed, x0=x0, label=label)
+    ci, sims = _jacobian_ci(problem, dict(res.best), specs)
+    files = {}
+    for fi, (path, cases) in enumerate(problem.files):
+        meas = np.concatenate([c[1] for c in cases])
+        sim = np.concatenate([s[0] for s in sims[fi]])
+        files[str(path)] = {"role": "fitted" if fi == 0 else "predicted", "nrmse": nrmse(meas, sim),
+                            "sha256": _sha(Path(path)), "records": len(cases), "samples": len(meas)}
+    result = {"submodel": submodel, **extra_meta,
+              "objective": {"name": extra_meta.get("objective_name", "int |measured - simulated| dt"),
+                            "start": res.start_objective, "best": res.best_objective,
+                            "evaluations": res.evaluations, "failed_simulations": res.failed},
+              "parameters": dict(res.best), "overrides": {**(fixed_overrides or {}), **res.best},
+              "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs}, "uncertainty": ci, "files": files,
+              "nrmse": files[str(problem.files[0][0])]["nrmse"],
+              "optimizer": f"GA (pygad) population {settings.population}, {settings.generations} generations, "
+                           f"seed {seed}"}
+    result.pop("objective_name", None)
+    if out is not None:
+        out = Path(out)
+        _write_json(out / "fit.json", result)
+        if plot_fn is not None:
+            plot_fn(out, problem, sims)
+    return result
+
+
+def _series_plots(out: Path, problem: _Problem, sims, ylabel: str, name: str, x_of=None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    for fi, (path, cases) in enumerate(problem.files):
+        k = len(cases)
+        fig, axes = plt.subplots(k, 1, figsize=(11, 3.2 * k), squeeze=False, constrained_layout=True)
+        for ax, (t, meas, ex, extra), s in zip(axes[:, 0], cases, sims[fi]):
+            if x_of is None:
+                ax.plot(t, meas, lw=0.8, label="measured")
+                ax.plot(t, s[0], "--", lw=0.9, label=f"fitted (NRMSE {nrmse(meas, s[0]):.3f})")
+                ax.set(xlabel="time [s]", ylabel=ylabel)
+            else:
+                x, xl = x_of(t, ex, extra)
+                ax.plot(x, meas, lw=0.8, label="measured")
+                ax.plot(x, s[0], "--", lw=0.9, label=f"fitted (NRMSE {nrmse(meas, s[0]):.3f})")
+                ax.set(xlabel=xl, ylabel=ylabel)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+        fig.suptitle(f"{name} fit: {Path(path).name} ({'fitted' if fi == 0 else 'predicted'})")
+        fig.savefig(out / f"{name}_{fi}_{Path(path).stem}.png", dpi=100)
+        plt.close(fig)
+
+
+def _settings(cfg: dict, population=None, generations=None):
+    from .calibration.ga import GASettings
+
+    ga = {**DEFAULT_GA, **(cfg.get("ga") or {})}
+    if population:
+        ga["population"] = population
+    if generations:
+        ga["generations"] = generations
+    return GASettings.from_config(ga)
+
+
+def _load(design) -> Design:
+    return design if isinstance(design, Design) else load_design(design or _default_design())
+
+
+def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None, predict=(), out=None,
+              config: dict | None = None, seed: int = 0, population=None, generations=None) -> dict:
+    """Fit one valve's stiffness a, b, c, d (and shim friction F_c) on a
+    flow-bench record (``flow [m^3/s]`` input, ``dp [Pa]`` output, eq. 6.1).
+    Default search space: conf/calibration/valves.yaml's items for the valve
+    kind, unless ``bounds`` / ``config['parameters']`` are given."""
+    from .calibration.approach1 import SHIM_VALVES, _Channel, _record_input
+
+    d, cfg = _load(design), dict(config or {})
+    if valve not in ("piston_rebound", "piston_intake", "base_compression", "base_intake"):
+        raise FitError(f"unknown valve {valve!r}; expected piston_rebound, piston_intake, base_compression, "
+                       "base_intake")
+    items = bounds or cfg.get("parameters") or _study_items("valves.yaml", "shim" if valve in SHIM_VALVES
+                                                            else "intake")
+    specs = _specs(d, items, f"{valve}.", cfg.get("_where", "valve search space"))
+    cutoff = float(cfg.get("input_cutoff", 20.0))
+    files = []
+    for p in [data, *predict]:
+        cases = []
+        for _, g in runs(_read(p, "flowbench")):
+            t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
+            cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
+        files.append((str(p), cases))
+    ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
+    prob = _Problem(d, "valve", ch, files, {"bench": cfg.get("bench")} if cfg.get("bench") else {})
+
+    def plots(o, problem, sims):
+        _series_plots(o, problem, sims, "dp [Pa]", "valve",
+                      x_of=lambda t, ex, extra: (np.interp(t, ex.t0 + ex.dt * np.arange(len(ex.value)), ex.value)
+                                                 * 60000.0, "flow [l/min]"))
+
+    return _fit_model(prob, specs, out, f"valve {valve}", "valve", _settings(cfg, population, generations), seed,
+                      {"valve": valve, "objective_name": "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]"}, plots)
+
+
+def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
+                   current: float | None = None, population=None, generations=None) -> dict:
+    """Fit gas content and oil bulk modulus (default) on a damper-level sine
+    record (displacement input, force output, eq. 6.2)."""
+    from .calibration.approach1 import _record_input, _through_sensor
+
+    d, cfg = _load(design), dict(config or {})
+    items = bounds or cfg.get("parameters") or _study_items("compliance.yaml", "parameters")
+    specs = _specs(d, items, "", cfg.get("_where", "compliance search space"))
+    cutoff = float(cfg.get("input_cutoff", 1000.0))
+    files = []
+    for p in [data, *predict]:
+        cases = []
+        for _, g in runs(_read(p, "compliance" if current is None else None)):
+            t, ex = _record_input(g, "displacement [m]", "displacement", cutoff)
+            cur = current if current is not None else float(g["current [A]"].iloc[0])
+            cases.append((t, g["force [N]"].to_numpy(), ex, {"current": cur}))
+        files.append((str(p), cases))
+    fs = 1.0 / (files[0][1][0][0][1] - files[0][1][0][0][0])
+    ch = _through_sensor("rod force [N]", cfg.get("force_bandwidth"), fs)
+    prob = _Problem(d, "damper", ch, files, {})
+
+    def plots(o, problem, sims):
+        _series_plots(o, problem, sims, "rod force [N]", "compliance")
+
+    return _fit_model(prob, specs, out, "compliance", "compliance", _settings(cfg, population, generations), seed,
+                      {"objective_name": "eq. 6.2 int |F_test - F_sim| dt [N*s]"}, plots)
+
+
+def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
+                 population=None, generations=None) -> dict:
+    """Fit the top-mount parameters on a top-mount record (displacement
+    input, force output, eq. 6.3). With ``config['static'] = {run, order}``
+    and that run in the record, the static curve is fitted by least squares
+    first (kept only if it lowers eq. 6.3, as in the study); the GA then
+    uses the runs named in ``config['runs']`` (or ``config['dynamic_run']``,
+    as in conf/calibration/topmount.yaml; default: all but the static)."""
+    from .calibration.approach1 import _record_input, _through_sensor, fit_static_curve
+
+    d, cfg = _load(design), dict(config or {})
+    items = bounds or cfg.get("parameters") or _study_items("topmount.yaml", "parameters")
+    specs = _specs(d, items, "top_mount.", cfg.get("_where", "top-mount search space"))
+    cutoff = float(cfg.get("input_cutoff", 500.0))
+    meas0 = _read(data, "topmount")
+    static = cfg.get("static") or {}
+    names = [n for n, _ in runs(meas0)]
+    fixed = {}
+    want = cfg.get("runs") or ([cfg["dynamic_run"]] if cfg.get("dynamic_run") else None)
+    files = []
+    for p in [data, *predict]:
+        cases = []
+        for name, g in runs(_read(p, "topmount")):
+            if (want and name not in want) or (not want and name == static.get("run")):
+                continue
+            t, ex = _record_input(g, "displacement [m]", "displacement", cutoff)
+            cases.append((t, g["force [N]"].to_numpy(), ex, {}))
+        if not cases:
+            raise FitError(f"{p}: no record to fit (runs {names}; config runs {want})")
+        files.append((str(p), cases))
+    fs = 1.0 / (files[0][1][0][0][1] - files[0][1][0][0][0])
+    ch = _through_sensor("top mount force [N]", cfg.get("force_bandwidth"), fs)
+    kept = "design"
+    if static.get("run") in names:
+        coef = fit_static_curve(meas0, static["run"], int(static.get("order", 5)))
+        keys = [s.key for s in specs]
+        row = {k: float(d[k]) for k in keys}
+        j_nom = _Problem(d, "topmount", ch, files[:1], {}).objective(keys)(np.array([list(row.values())]))[0]
+        d_ls = d.with_overrides({"top_mount.F_LD": coef})
+        j_ls = _Problem(d_ls, "topmount", ch, files[:1], {}).objective(keys)(np.array([list(row.values())]))[0]
+        if j_ls <= j_nom:
+            d, fixed, kept = d_ls, {"top_mount.F_LD": coef}, "least squares"
+    prob = _Problem(d, "topmount", ch, files, {})
+
+    def plots(o, problem, sims):
+        _series_plots(o, problem, sims, "top mount force [N]", "topmount")
+
+    return _fit_model(prob, specs, out, "top mount", "topmount", _settings(cfg, population, generations), seed,
+                      {"static_curve": kept, "objective_name": "eq. 6.3 int |F_test - F_sim| dt [N*s]"}, plots,
+                      fixed_overrides=fixed)
+
+
+def study_uncertainty(submodel: str, design: Design, best: dict, measured: pd.DataFrame, *, cutoff: float,
+                      valve: str | None = None, bench: dict | None = None, force_bandwidth: float | None = None,
+                      run: str | None = None, specs=None) -> dict:
+    """Gauss-Newton intervals of a study fit (stages/*_fit.py) at its optimum
+    ``best`` (design overrides), on the same record and input filtering as
+    calibration/approach1: valve (flow bench), compliance, or topmount
+    (the record's run ``run``)."""
+    from .calibration.approach1 import _Channel, _record_input, _through_sensor
+
+    cases = []
+    if submodel == "valve":
+        for _, g in runs(measured):
+            t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
+            cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
+        ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"),
+                      lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
+        prob = _Problem(design, "valve", ch, [("record", cases)], {"bench": bench} if bench else {})
+    else:
+        col, cfg = ("rod force [N]", "damper") if submodel == "compliance" else ("top mount force [N]", "topmount")
+        for name, g in runs(measured):
+            if run is not None and name != run:
+                continue
+            t, ex = _record_input(g, "displacement [m]", "displacement", cutoff)
+            extra = {"current": float(g["current [A]"].iloc[0])} if submodel == "compliance" else {}
+            cases.append((t, g["force [N]"].to_numpy(), ex, extra))
+        fs = 1.0 / (cases[0][0][1] - cases[0][0][0])
+        prob = _Problem(design, cfg, _through_sensor(col, force_bandwidth, fs), [("record", cases)], {})
+    ci, _ = _jacobian_ci(prob, {k: float(v) for k, v in best.items()}, specs)
+    return ci
+
+
+def _specs(d: Design, items, prefix: str, where: str):
+    from .calibration.approach1 import specs_from_config
+
+    try:
+        return specs_from_config(d, list(items), prefix=prefix, where=where)
+    except ValueError as e:
+        raise FitError(str(e)) from None
+
+
+def _study_items(fname: str, section: str) -> list:
+    """The study's search space (conf/calibration/<fname>) as the default."""
+    from .config import repo_root
+
+    try:
+        p = repo_root() / "conf" / "calibration" / fname
+    except FileNotFoundError:
+        raise FitError("no --bounds / --param given and no conf/calibration/ here for a default search space") \
+            from None
+    return yaml_load(p.read_text())[section]
+
+
+def run_fit_cli(args) -> Path:
+    """``dampertwin fit`` entry: returns the written fit.json path."""
+    cfg = load_search_config(args.bounds)
+    if args.bounds:
+        cfg["_where"] = str(args.bounds)
+    items = _merge_items(cfg.get("parameters"), parse_param_args(args.param)) or None
+    kw = dict(design=args.design, bounds=items, predict=args.predict, out=args.out, seed=args.seed)
+    ga = dict(config=cfg, population=args.population, generations=args.generations)
+    if args.submodel == "friction":
+        fixed = {k: float(v) for k, v in (cfg.get("fixed") or {}).items()}
+        fit_friction(args.data, fixed=fixed, **kw)
+    elif args.submodel == "valve":
+        valve = args.valve or cfg.get("valve")
+        if not valve:
+            raise FitError("a valve fit needs --valve (or 'valve:' in the bounds file)")
+        fit_valve(args.data, valve, **kw, **ga)
+    elif args.submodel == "compliance":
+        fit_compliance(args.data, current=args.current, **kw, **ga)
+    else:
+        fit_topmount(args.data, **kw, **ga)
+    return Path(args.out) / "fit.json"
+
+
+__all__ = ["FitError", "lugre_force", "simulate_friction", "record_velocity", "fit_friction", "fit_valve",
+           "fit_compliance", "fit_topmount", "study_uncertainty", "coulomb_viscous_fit", "nrmse", "gauss_newton_ci", "effective_n",
+           "parse_param_args"]

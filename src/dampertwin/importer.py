@@ -1,0 +1,189 @@
+"""Import a user's own measurement (CSV / Parquet, any common units) into the
+project's schema: SI, unit-suffixed columns (``force [N]``), Parquet with
+metadata saying the file is imported, from which source (SHA-256) and how.
+
+A mapping (YAML) names, for each source column, the quantity it holds and
+its unit::
+
+    protocol: monosine            # optional: validate against this test's schema
+    columns:
+      Zeit:  {quantity: time, unit: ms}
+      Weg:   {quantity: displacement, unit: mm}
+      Kraft: {quantity: force, unit: kN}
+      Acc:   {quantity: rod acceleration, unit: g}
+      Lauf:  {quantity: run}      # optional: the record name column
+    constants:                    # optional: quantities the file lacks
+      current: {value: 1600, unit: mA}
+    csv: {sep: ";", decimal: ","} # optional: pandas.read_csv keywords
+    time_offset: true             # optional: shift time to start at 0
+
+    dampertwin import --map mapping.yaml rig.csv --out data/own/monosine/baseline_1.6.parquet
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import io
+
+G0 = 9.80665  # [m/s^2] standard gravity (same as kpi.G)
+
+# unit -> (SI unit, factor, offset): value_SI = value * factor + offset
+UNIT_TABLE: dict[str, tuple[str, float, float]] = {
+    # time
+    "s": ("s", 1.0, 0.0), "ms": ("s", 1e-3, 0.0), "us": ("s", 1e-6, 0.0), "min": ("s", 60.0, 0.0),
+    # length
+    "m": ("m", 1.0, 0.0), "cm": ("m", 1e-2, 0.0), "mm": ("m", 1e-3, 0.0), "um": ("m", 1e-6, 0.0),
+    "in": ("m", 0.0254, 0.0),
+    # velocity
+    "m/s": ("m/s", 1.0, 0.0), "mm/s": ("m/s", 1e-3, 0.0), "cm/s": ("m/s", 1e-2, 0.0), "km/h": ("m/s", 1 / 3.6, 0.0),
+    # acceleration
+    "m/s^2": ("m/s^2", 1.0, 0.0), "m/s2": ("m/s^2", 1.0, 0.0), "mm/s^2": ("m/s^2", 1e-3, 0.0), "g": ("m/s^2", G0, 0.0),
+    # force
+    "N": ("N", 1.0, 0.0), "kN": ("N", 1e3, 0.0), "daN": ("N", 10.0, 0.0), "lbf": ("N", 4.4482216152605, 0.0),
+    # pressure (absolute unless the mapping says gauge: true)
+    "Pa": ("Pa", 1.0, 0.0), "kPa": ("Pa", 1e3, 0.0), "MPa": ("Pa", 1e6, 0.0), "bar": ("Pa", 1e5, 0.0),
+    "mbar": ("Pa", 100.0, 0.0), "psi": ("Pa", 6894.757293168, 0.0),
+    # volume flow
+    "m^3/s": ("m^3/s", 1.0, 0.0), "l/min": ("m^3/s", 1e-3 / 60.0, 0.0), "l/s": ("m^3/s", 1e-3, 0.0),
+    "cm^3/s": ("m^3/s", 1e-6, 0.0), "ml/s": ("m^3/s", 1e-6, 0.0), "m^3/h": ("m^3/s", 1 / 3600.0, 0.0),
+    # current, temperature, frequency, dimensionless
+    "A": ("A", 1.0, 0.0), "mA": ("A", 1e-3, 0.0),
+    "K": ("K", 1.0, 0.0), "degC": ("K", 1.0, 273.15), "degF": ("K", 5.0 / 9.0, 273.15 - 32.0 * 5.0 / 9.0),
+    "Hz": ("Hz", 1.0, 0.0), "kHz": ("Hz", 1e3, 0.0), "-": ("-", 1.0, 0.0),
+}
+ALIASES = {"µm": "um", "μm": "um", "µs": "us", "m/s²": "m/s^2", "°C": "degC", "C": "degC", "°F": "degF",
+           "L/min": "l/min", "lpm": "l/min", "L/s": "l/s", "ccm/s": "cm^3/s", "G": "g"}
+P_ATM = 101325.0  # [Pa] added to gauge pressures
+
+
+class MappingError(ValueError):
+    """A mapping or source problem; the message names the file and column."""
+
+
+def to_si(values, unit: str, *, where: str = "value", gauge: bool = False) -> tuple[np.ndarray, str]:
+    """Convert ``values`` in ``unit`` to SI. Returns (array, SI unit).
+    Raises MappingError naming ``where`` for an unknown unit."""
+    u = ALIASES.get(str(unit).strip(), str(unit).strip())
+    if u not in UNIT_TABLE:
+        raise MappingError(f"{where}: unknown unit {unit!r}; known: {', '.join(UNIT_TABLE)}")
+    si, factor, offset = UNIT_TABLE[u]
+    x = np.asarray(values, dtype=float) * factor + offset
+    if gauge:
+        if si != "Pa":
+            raise MappingError(f"{where}: gauge: true only applies to pressures, unit is {unit!r}")
+        x = x + P_ATM
+    return x, si
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _read_source(src: Path, csv_kw: dict) -> pd.DataFrame:
+    if not src.is_file():
+        raise MappingError(f"{src}: file not found")
+    try:
+        if src.suffix == ".parquet":
+            return pd.read_parquet(src)
+        return pd.read_csv(src, **csv_kw)
+    except Exception as e:
+        raise MappingError(f"{src}: cannot read: {e}") from None
+
+
+def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.DataFrame:
+    """Apply a column mapping (see module docstring) to a frame: the result
+    has only the mapped columns, in SI, named ``quantity [SI unit]``."""
+    cols = mapping.get("columns")
+    if not isinstance(cols, dict) or not cols:
+        raise MappingError(f"{where}: mapping needs a non-empty 'columns:' section")
+    out = {}
+    for name, spec in cols.items():
+        label = f"{where}: column {name!r}"
+        if name not in df.columns:
+            raise MappingError(f"{label}: not in the file (columns: {', '.join(map(str, df.columns))})")
+        if not isinstance(spec, dict) or "quantity" not in spec:
+            raise MappingError(f"{label}: mapping entry needs 'quantity' (and 'unit')")
+        q = str(spec["quantity"]).strip()
+        if q == "run":
+            out["run"] = df[name].astype(str).to_numpy()
+            continue
+        if "unit" not in spec:
+            raise MappingError(f"{label}: mapping entry needs 'unit'")
+        raw = pd.to_numeric(df[name], errors="coerce")
+        if raw.isna().any():
+            bad = df[name][raw.isna()].iloc[0]
+            raise MappingError(f"{label}: {int(raw.isna().sum())} non-numeric values (first {bad!r})")
+        x, si = to_si(raw.to_numpy(), spec["unit"], where=label, gauge=bool(spec.get("gauge", False)))
+        if q in io.UNITS and io.UNITS[q] != si:
+            raise MappingError(f"{label}: unit {spec['unit']!r} is a {si} unit but {q!r} needs {io.UNITS[q]!r}")
+        col = f"{q} [{si}]"
+        if col in out:
+            raise MappingError(f"{label}: quantity {q!r} mapped twice")
+        out[col] = x * float(spec.get("scale", 1.0))
+    n = len(df)
+    for q, spec in (mapping.get("constants") or {}).items():
+        label = f"{where}: constant {q!r}"
+        if not isinstance(spec, dict) or "value" not in spec or "unit" not in spec:
+            raise MappingError(f"{label}: needs 'value' and 'unit'")
+        x, si = to_si([spec["value"]], spec["unit"], where=label)
+        if q in io.UNITS and io.UNITS[q] != si:
+            raise MappingError(f"{label}: unit {spec['unit']!r} is a {si} unit but {q!r} needs {io.UNITS[q]!r}")
+        out[f"{q} [{si}]"] = np.full(n, x[0])
+    res = pd.DataFrame(out)
+    if mapping.get("time_offset") and "time [s]" in res:
+        if "run" in res:
+            res["time [s]"] = res["time [s]"] - res.groupby("run")["time [s]"].transform("first")
+        else:
+            res["time [s]"] = res["time [s]"] - res["time [s]"].iloc[0]
+    if "run" in res:  # the project's files carry 'run' last
+        res = res[[c for c in res.columns if c != "run"] + ["run"]]
+    return res
+
+
+def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike, out: str | os.PathLike, *,
+                       protocol: str | None = None) -> Path:
+    """Convert ``src`` (CSV / Parquet) with ``mapping`` (dict or YAML path) and
+    write ``out`` (Parquet, project schema). ``protocol`` (default: the
+    mapping's ``protocol`` or the parent folder name of ``out`` when it is a
+    known test) selects the schema check; the written file must pass
+    ``io.read_frame`` or it is removed and the errors raised."""
+    from .design import yaml_load
+
+    src, out = Path(src), Path(out)
+    map_where = "mapping"
+    if not isinstance(mapping, dict):
+        map_where = str(mapping)
+        try:
+            mapping = yaml_load(Path(mapping).read_text())
+        except FileNotFoundError:
+            raise MappingError(f"{map_where}: file not found") from None
+        if not isinstance(mapping, dict):
+            raise MappingError(f"{map_where}: expected a mapping with a 'columns:' section")
+    if out.suffix != ".parquet":
+        raise MappingError(f"{out}: output must be a .parquet file")
+    protocol = protocol or mapping.get("protocol") or (out.parent.name if out.parent.name in io.REQUIRED else None)
+    df = _read_source(src, dict(mapping.get("csv") or {}))
+    res = convert(df, mapping, where=f"{src} (mapping {map_where})")
+    meta = {"imported": True, "synthetic": False, "source": src.name, "source_sha256": file_sha256(src),
+            "mapping": mapping, "protocol": protocol,
+            "units": {k: v.get("unit") for k, v in mapping["columns"].items() if isinstance(v, dict)}}
+    io.write_frame(out, res, meta)
+    try:
+        io.read_frame(out, protocol)
+    except io.DataError:
+        out.unlink(missing_ok=True)
+        raise
+    return out
+
+
+__all__ = ["UNIT_TABLE", "MappingError", "to_si", "convert", "import_measurement", "file_sha256"]

@@ -1,0 +1,80 @@
+"""Importer of own measurements: unit conversions against hand values, clean
+errors naming the column, metadata with the source hash."""
+
+import hashlib
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dampertwin.cli import main
+from dampertwin.importer import MappingError, convert, import_measurement, to_si
+from dampertwin.io import read_frame, read_meta
+
+
+@pytest.mark.parametrize("value,unit,si,unit_si", [
+    (12.5, "mm", 0.0125, "m"), (3.0, "bar", 3.0e5, "Pa"), (2.0, "kN", 2000.0, "N"), (1.0, "g", 9.80665, "m/s^2"),
+    (60.0, "l/min", 1.0e-3, "m^3/s"), (20.0, "degC", 293.15, "K"), (250.0, "ms", 0.25, "s"),
+    (150.0, "kPa", 1.5e5, "Pa"), (1.2, "MPa", 1.2e6, "Pa"), (4.0, "m/s^2", 4.0, "m/s^2"), (900.0, "mA", 0.9, "A"),
+    (100.0, "mm/s", 0.1, "m/s"), (1.0, "psi", 6894.757293168, "Pa"), (212.0, "degF", 373.15, "K"),
+])
+def test_unit_conversion_hand_values(value, unit, si, unit_si):
+    x, u = to_si([value], unit)
+    assert u == unit_si
+    assert x[0] == pytest.approx(si, rel=1e-12)
+
+
+def test_gauge_pressure_adds_atmosphere():
+    x, _ = to_si([2.0], "bar", gauge=True)
+    assert x[0] == pytest.approx(2e5 + 101325.0)
+
+
+def test_unknown_unit_names_the_column():
+    df = pd.DataFrame({"t": [0.0, 1.0], "Kraft": [1.0, 2.0]})
+    m = {"columns": {"t": {"quantity": "time", "unit": "s"}, "Kraft": {"quantity": "force", "unit": "furlong"}}}
+    with pytest.raises(MappingError, match=r"column 'Kraft'.*unknown unit 'furlong'"):
+        convert(df, m)
+
+
+def test_wrong_dimension_and_missing_column_are_named():
+    df = pd.DataFrame({"t": [0.0, 1.0], "F": [1.0, 2.0]})
+    with pytest.raises(MappingError, match=r"column 'F'.*'N'"):
+        convert(df, {"columns": {"t": {"quantity": "time", "unit": "s"}, "F": {"quantity": "force", "unit": "bar"}}})
+    with pytest.raises(MappingError, match=r"column 'X'.*not in the file"):
+        convert(df, {"columns": {"X": {"quantity": "time", "unit": "s"}}})
+
+
+def test_import_writes_schema_with_provenance(tmp_path):
+    n = 2000
+    t_ms = np.arange(n) * 0.1  # 10 kHz in ms
+    src = tmp_path / "rig.csv"
+    pd.DataFrame({"Zeit": t_ms, "Weg": 5.0 * np.sin(2 * np.pi * 13 * t_ms / 1e3), "Kraft": np.full(n, 1.5),
+                  "Acc": np.full(n, 2.0)}).to_csv(src, sep=";", index=False)
+    mapping = tmp_path / "map.yaml"
+    mapping.write_text("protocol: monosine\ncsv: {sep: ';'}\ncolumns:\n"
+                       "  Zeit: {quantity: time, unit: ms}\n  Weg: {quantity: displacement, unit: mm}\n"
+                       "  Kraft: {quantity: force, unit: kN}\n  Acc: {quantity: rod acceleration, unit: g}\n"
+                       "constants:\n  current: {value: 1600, unit: mA}\n")
+    out = import_measurement(src, mapping, tmp_path / "own" / "monosine" / "case.parquet")
+    df, meta = read_frame(out, "monosine")
+    assert df["time [s]"].iloc[-1] == pytest.approx((n - 1) * 1e-4)
+    assert df["displacement [m]"].abs().max() == pytest.approx(5e-3, rel=1e-3)
+    assert df["force [N]"].iloc[0] == pytest.approx(1500.0)
+    assert df["rod acceleration [m/s^2]"].iloc[0] == pytest.approx(2 * 9.80665)
+    assert df["current [A]"].iloc[0] == pytest.approx(1.6)
+    assert meta["imported"] is True and meta["synthetic"] is False
+    assert meta["source_sha256"] == hashlib.sha256(src.read_bytes()).hexdigest()
+    assert read_meta(out)["units"]["Kraft"] == "kN"
+
+
+def test_import_cli_rejects_a_record_failing_the_schema(tmp_path, capsys):
+    src = tmp_path / "short.csv"
+    pd.DataFrame({"t": [0.0, 1.0, 2.0], "F": [1.0, 2.0, 3.0]}).to_csv(src, index=False)
+    mp = tmp_path / "m.yaml"
+    mp.write_text("columns:\n  t: {quantity: time, unit: ms}\n  F: {quantity: force, unit: daN}\n")
+    out = tmp_path / "monosine" / "x.parquet"
+    assert main(["import", "--map", str(mp), str(src), "--out", str(out)]) == 1
+    assert "missing column 'displacement [m]'" in capsys.readouterr().err and not out.exists()
+    ok = tmp_path / "misc" / "x.parquet"
+    assert main(["import", "--map", str(mp), str(src), "--out", str(ok)]) == 0
+    assert read_frame(ok)[0]["force [N]"].tolist() == [10.0, 20.0, 30.0]
