@@ -43,7 +43,8 @@ FRICTION_KEYS = {"F_c": "rod_friction.F_c", "F_s": "rod_friction.F_s", "k_b": "r
                  "s2": "constants.s2", "c_comp": "constants.c_comp", "vd": "constants.vd",
                  "a_s": "constants.a_s", "alpha_s": "constants.alpha_s"}
 CI_Z = 1.959963984540054  # two-sided 95 % normal quantile
-DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mutation_probability": 10}
+DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mutation_probability": 10,
+              "max_wall_s": 600.0}  # wall-time cap [s] of one population's simulations (issue 13)
 
 
 class FitError(ValueError):
