@@ -545,14 +545,21 @@ FUZZ_VALUES = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integ
                         st.text(max_size=6), st.none(), st.booleans(), st.lists(st.floats(), max_size=3))
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", 40)), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(edits=st.lists(st.tuples(st.sampled_from(NUMS), st.sampled_from(["value", "bounds", "unit", "type"]),
                                 FUZZ_VALUES), min_size=1, max_size=3),
+       cedits=st.lists(st.tuples(st.integers(0, 27), st.sampled_from(["name", "value", "unit", "type"]),
+                                 FUZZ_VALUES), max_size=2),
+       effect=st.one_of(st.none(), st.tuples(st.sampled_from(["jet_force", "cavitation", "x"]), FUZZ_VALUES)),
        junk=st.one_of(st.none(), st.binary(max_size=40)))
-def test_fuzz_design_entries_load_or_raise_design_error(tmp_path_factory, edits, junk):
+def test_fuzz_design_entries_load_or_raise_design_error(tmp_path_factory, edits, cedits, effect, junk):
     doc = base_doc()
     for no, field, v in edits:
         entry(doc, no)[field] = v
+    for i, field, v in cedits:
+        doc["constants"][i][field] = v
+    if effect is not None:
+        doc["effects"][effect[0]] = effect[1]
     text = yaml.dump(doc, Dumper=_Dumper, sort_keys=False)
     d = tmp_path_factory.mktemp("fz")
     p = d / "fuzz.yaml"
@@ -574,7 +581,7 @@ CELLS = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=64), st.i
                   st.text(max_size=3), st.none())
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", 60)), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(cols=st.lists(st.sampled_from(COLS), min_size=1, max_size=5, unique=True),
        n=st.integers(0, 30), regular=st.booleans(), cells=st.lists(CELLS, min_size=1, max_size=8),
        protocol=st.sampled_from([None, "monosine", "flowbench", "topmount"]), suffix=st.sampled_from([".parquet", ".csv"]),

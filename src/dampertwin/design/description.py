@@ -550,7 +550,7 @@ def _parse_parameters(items, where, base_dir, errors, known_map=None,
             errors.append(f"{label}: unknown type {ptype!r}; expected one of D, F, C, T")
         unit = item.get("unit")
         if "unit" in item:
-            if unit not in SI_UNITS:
+            if not isinstance(unit, str) or unit not in SI_UNITS:
                 errors.append(f"{label}: unit {unit!r} is unknown or not SI; expected {spec.unit!r}")
             elif unit != spec.unit:
                 errors.append(f"{label}: unit {unit!r}; expected the SI unit {spec.unit!r}")
@@ -665,7 +665,7 @@ def _parse_constants(items, where, errors) -> dict[str, Constant]:
             continue
         nm = item.get("name")
         label = f"{where}: constant {nm!r}"
-        if nm not in CONSTANTS:
+        if not isinstance(nm, str) or nm not in CONSTANTS:
             errors.append(f"{label}: unknown constant; expected one of {', '.join(CONSTANTS)}")
             continue
         if nm in out:
@@ -682,7 +682,7 @@ def _parse_constants(items, where, errors) -> dict[str, Constant]:
             errors.append(f"{label}: type {item['type']!r}; constants are D or F")
         unit = item.get("unit")
         if "unit" in item and unit != CONSTANTS[nm]:
-            kind = "unknown or not SI" if unit not in SI_UNITS else "not the declared SI unit"
+            kind = "unknown or not SI" if not isinstance(unit, str) or unit not in SI_UNITS else "not the declared SI unit"
             errors.append(f"{label}: unit {unit!r} is {kind}; expected {CONSTANTS[nm]!r}")
         v = item.get("value")
         if "value" in item and (not _is_num(v) or not math.isfinite(v)):
