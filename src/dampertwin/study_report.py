@@ -23,6 +23,8 @@ def _fmt(v, digits: int = 4) -> str:
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_fmt(x, 3) for x in v) + "]"
     if isinstance(v, float):
+        if math.isnan(v):
+            return "-"
         if not math.isfinite(v):
             return str(v)
         return f"{v:.{digits}g}"
