@@ -7,6 +7,7 @@ import matplotlib.pyplot as plt
 from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, read_overlay, seed_for, write_fit
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
+from dampertwin.calibration.polish import PolishSettings
 from dampertwin.design import yaml_load
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol
@@ -27,11 +28,12 @@ def main() -> None:
     bandwidth = load_protocol(CONF / "test" / "compliance.yaml").get("sensors", {}).get("force")
     res = fit_compliance(d, meas, cal, GASettings.from_config(cfg.profile.ga.compliance), seed,
                          checkpoint=checkpoint("compliance"), scheduler=cfg.profile.scheduler,
+                         polish_settings=PolishSettings.from_config(cfg.profile.polish),
                          force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
     write_fit(out, res, meta, "N*s", d.hash(), extra=res.best)
-    fitted = d.with_overrides(res.best)
+    fitted = d.with_overrides({k: v for k, v in res.best.items() if not k.startswith("sensor.")})
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
     name, g = runs(meas)[-1]
     for label, dd, st in (("nominal", d, ":"), ("fitted", fitted, "--")):

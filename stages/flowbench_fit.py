@@ -12,6 +12,7 @@ from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, seed_for,
 from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
+from dampertwin.calibration.polish import PolishSettings
 from dampertwin.design import yaml_load
 from dampertwin.io import read_frame
 from dampertwin.simulation import simulate
@@ -32,7 +33,8 @@ def main(name: str) -> None:
     out = OUT / "valves" / name
     seed = seed_for(f"flowbench_fit/{name}")
     res = fit_valve(d, valve, meas, cal, GASettings.from_config(cfg.profile.ga.valves), seed, bench=bench,
-                    checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler)
+                    checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler,
+                    polish_settings=PolishSettings.from_config(cfg.profile.polish))
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
     write_fit(out, res, meta, "Pa*s", d.hash())

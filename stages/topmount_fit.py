@@ -11,6 +11,7 @@ from _common import CONF, MEASURED, OUT, baseline, checkpoint, config, seed_for,
 from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
+from dampertwin.calibration.polish import PolishSettings
 from dampertwin.design import yaml_load
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol
@@ -30,12 +31,13 @@ def main(name: str) -> None:
     bandwidth = load_protocol(CONF / "test" / "topmount.yaml").get("sensors", {}).get("force")
     res, coef, kept = fit_top_mount(d, meas, cal, GASettings.from_config(cfg.profile.ga.topmount), seed,
                               checkpoint=checkpoint(f"topmount_{name}"), scheduler=cfg.profile.scheduler,
+                              polish_settings=PolishSettings.from_config(cfg.profile.polish),
                               force_bandwidth=bandwidth)
-    best = {**res.best, "top_mount.F_LD": coef}
+    best = {**res.best, "top_mount.F_LD": coef}  # sensor.* (nuisance) values are kept out of the overlay
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept}
     write_fit(out, res, meta, "N*s", d.hash(), best=best)
-    fitted = d.with_overrides(best)
+    fitted = d.with_overrides({k: v for k, v in best.items() if not k.startswith("sensor.")})
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
     g = dict(runs(meas))["random"]
     m = g["time [s]"] <= g["time [s]"].iloc[0] + 2.0

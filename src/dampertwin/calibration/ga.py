@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 INFEASIBLE = 1e30  # objective of a failed simulation
+TOP_KEPT = 10  # best distinct members returned (start points of a local polish)
 NEAR_SPREAD = 0.1  # gene-space std of the initial members placed around the nominal design
 
 
@@ -74,6 +75,12 @@ class FitResult:
     history: pd.DataFrame
     failed: int
     evaluations: int
+    top: list[np.ndarray] = field(default_factory=list)  # genes of the best distinct members, best first
+    objective_ga: float = float("nan")  # best objective of the GA alone (before any local polish)
+    polish: dict = field(default_factory=dict)  # local polish report (calibration.polish)
+    uncertainty: dict = field(default_factory=dict)  # calibration.uncertainty at the optimum
+    specs: list = field(default_factory=list)  # the fitted quantities (set by the approach-1 fits)
+    records: object = None  # calibration.polish.Records of the fit: re-evaluates its objective
 
 
 class Evaluator:
@@ -181,11 +188,14 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
     rows.append({"generation": settings.generations, "best": float(J.min()),
                  "mean": float(np.mean(J[J < INFEASIBLE])) if np.any(J < INFEASIBLE) else float("nan"),
                  "failed": int(np.sum(J >= INFEASIBLE))})
-    best_key = min(cache, key=cache.get)
+    ranked = sorted((k_ for k_ in cache if cache[k_] < INFEASIBLE), key=cache.get) or [min(cache, key=cache.get)]
+    best_key = ranked[0]
     gb = np.frombuffer(best_key, dtype=float)
     best = {s.key: float(s.to_value(gb[j])) for j, s in enumerate(specs)}
     start = float(objective(g0[None, :])[0]) if g0 is not None else float("nan")
-    return FitResult(best, cache[best_key], start, pd.DataFrame(rows), counters["failed"], counters["evals"])
+    top = [np.frombuffer(k_, dtype=float).copy() for k_ in ranked[:TOP_KEPT]]
+    return FitResult(best, cache[best_key], start, pd.DataFrame(rows), counters["failed"], counters["evals"],
+                     top=top, objective_ga=cache[best_key])
 
 
 def _save(path: Path, pop, gen, rows, cache, counters, sig):
