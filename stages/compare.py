@@ -96,15 +96,19 @@ def main() -> None:
 
 
 def fit_summary(cfg) -> dict:
-    """Every fit's values and objective before / after (committed with the
-    tables, so the study's calibration can be read without the DVC cache)."""
+    """Every fit's values, objective at the start / GA best / after polish,
+    fitted nuisance values and the parameters its data cannot determine
+    (uncertainty.md in its folder); committed with the tables, so the
+    study's calibration can be read without the DVC cache."""
     fits = {"profile": cfg.profile.name, "fits": {}}
     for ov in sorted(OUT.glob("*/**/overlay.yaml")):
         name = str(ov.parent.relative_to(OUT))
         m = json.loads((ov.parent / "metrics.json").read_text())
         fits["fits"][name] = {"values": read_overlay(ov), "objective_start": m["objective_start"],
+                              "objective_ga": m.get("objective_ga"), "objective_polished": m.get("objective_polished"),
                               "objective_best": m["objective_best"], "failed_simulations": m["failed_simulations"],
-                              "evaluations": m["evaluations"]}
+                              "evaluations": m["evaluations"], "nuisance": m.get("nuisance", {}),
+                              "undetermined": m.get("undetermined")}
     return fits
 
 
