@@ -135,19 +135,32 @@ def checkpoint(name: str) -> Path:
 
 def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dict | None = None,
               extra: dict | None = None) -> None:
-    """A fit's outputs: overlay (fitted values as design overrides), GA
-    history (Parquet) and metrics (objective before / after, failures)."""
+    """A fit's outputs: overlay (fitted design values as design overrides;
+    fitted ``sensor.*`` nuisance values go to the metrics, not the design),
+    GA history (Parquet), metrics (objective at the start, GA best, after
+    polish; failures) and the identifiability / uncertainty report
+    (uncertainty.json, uncertainty.md)."""
     from dampertwin.io import write_frame
 
     meta = {**meta, "config_hash": config_hash()}
     start, best_j = res.start_objective, res.best_objective
     improvement = 100 * (1 - best_j / start) if math.isfinite(start) and start > 0 else None
-    write_overlay(out / "overlay.yaml", res.best if best is None else best, meta)
+    best = res.best if best is None else best
+    write_overlay(out / "overlay.yaml", {k: v for k, v in best.items() if not k.startswith("sensor.")}, meta)
     write_frame(out / "history.parquet",
                 res.history.rename(columns={"best": f"best [{unit}]", "mean": f"mean [{unit}]"}),
                 {**meta, "design_hash": design_hash})
-    write_json(out / "metrics.json", {"objective_start": start, "objective_best": best_j,
+    unc = dict(res.uncertainty)
+    md = unc.pop("markdown", None)
+    write_json(out / "metrics.json", {"objective_start": res.start_objective, "objective_best": res.best_objective,
+                                      "objective_ga": res.objective_ga,
+                                      "objective_polished": res.polish.get("objective_polished"),
                                       "improvement_pct": improvement,
                                       "failed_simulations": res.failed, "evaluations": res.evaluations,
                                       **({"failure_reasons": res.failures} if res.failures else {}),
+                                      "nuisance": {k: v for k, v in best.items() if k.startswith("sensor.")},
+                                      "polish": res.polish, "undetermined": unc.get("undetermined"),
                                       **(extra or {})})
+    write_json(out / "uncertainty.json", {**unc, "objective": meta.get("objective")})
+    write_text(out / "uncertainty.md", (md or "No uncertainty analysis (no polish configured).")
+               .replace("# Identifiability and uncertainty", f"# Identifiability and uncertainty: {out.name}") + "\n")

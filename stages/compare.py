@@ -11,6 +11,7 @@ import pandas as pd
 
 from _common import CONF, OUT, config, config_hash, read_overlay, write_json, write_text, measured_dir, params
 from dampertwin import kpi, report
+from dampertwin.design import yaml_load
 from dampertwin.io import read_frame, runs, write_frame
 from dampertwin.protocols import load_protocol
 from dampertwin.study_report import build_report
@@ -20,23 +21,29 @@ from dampertwin.variants import load_variants
 def main() -> None:
     cfg = config()
     f_mono = load_protocol(CONF / "test" / "monosine.yaml")["frequency"]
+    cmp_cfg = yaml_load((CONF / "compare.yaml").read_text())
+    n_tr = int(cmp_cfg["transient_cycles"])
     rows65, rows66, plot_rows = [], [], []
     synthetic = False
     for v in load_variants(CONF / "variant"):
         sim_m = read_frame(OUT / "sim" / v.case / "monosine.parquet", "monosine")[0]
         mea_m, mmeta = read_frame(measured_dir() / "monosine" / f"{v.case}.parquet", "monosine")
         synthetic = synthetic or bool(mmeta.get("synthetic"))
-        ps, pm = kpi.rod_acceleration_peaks(sim_m, f_mono), kpi.rod_acceleration_peaks(mea_m, f_mono)
-        rows65.append(dict(no=v.row, case=v.title, current=v.current, sim_rebound=ps["rebound"],
-                           meas_rebound=pm["rebound"], sim_compression=ps["compression"],
-                           meas_compression=pm["compression"]))
+        ps = kpi.rod_acceleration_extremes(sim_m, f_mono, n_tr)
+        pm = kpi.rod_acceleration_extremes(mea_m, f_mono, n_tr)
+        row = dict(no=v.row, case=v.title, current=v.current)
+        for h in kpi.HALVES:
+            for e in kpi.EXTREMES:
+                for src, pk in (("sim", ps), ("meas", pm)):
+                    row[f"{src}_{h}_{e}"], row[f"{src}_{h}_{e}_std"] = pk[f"{h} {e}"], pk[f"{h} {e} std"]
+        rows65.append(row)
         sim_r = read_frame(OUT / "sim" / v.case / "random.parquet", "random")[0]
         mea_r = read_frame(measured_dir() / "random" / f"{v.case}.parquet", "random")[0]
         ls, lm = kpi.psd_levels(sim_r), kpi.psd_levels(mea_r)
         rows66.append(dict(no=v.row, case=v.title, current=v.current, sim_200=ls["200 Hz [dB]"],
                            meas_200=lm["200 Hz [dB]"], sim_300=ls["300 Hz [dB]"], meas_300=lm["300 Hz [dB]"]))
-        for k, s_, m_ in (("rebound peak [g]", ps["rebound"], pm["rebound"]),
-                          ("compression peak [g]", ps["compression"], pm["compression"]),
+        for k, s_, m_ in (*((f"{h} {e} [g]", ps[f"{h} {e}"], pm[f"{h} {e}"])
+                            for h in kpi.HALVES for e in kpi.EXTREMES),
                           ("PSD 200 Hz [dB]", ls["200 Hz [dB]"], lm["200 Hz [dB]"]),
                           ("PSD 300 Hz [dB]", ls["300 Hz [dB]"], lm["300 Hz [dB]"])):
             plot_rows.append({"case": v.case, "kpi": k, "simulated": s_, "measured": m_})
@@ -62,22 +69,32 @@ def main() -> None:
     t65, t66 = kpi.table_6_5(rows65), kpi.table_6_6(rows66)
     measured = params().get("measured", "data/measured")
     source = "measured data SYNTHETIC" if synthetic else f"measured data: {measured}"
+    fl = cmp_cfg["flag"]
+    flags = (kpi.flag_table_6_5(t65, rows65, float(fl["percent"]), float(fl["near_zero_g"]),
+                                float(fl["scatter_sigmas"]))
+             + kpi.flag_table_6_6(t66, float(fl["dB"])))
+    flags65 = [f for f in flags if f["table"] == "6.5"]
+    flags66 = [f for f in flags if f["table"] == "6.6"]
+    n_cyc = int(ps["cycles"])
+    definition = kpi.TABLE_6_5_DEFINITION.format(cycles=n_cyc, total=n_cyc + n_tr, transient=n_tr)
     meta = {"profile": cfg.profile.name, "seed": int(cfg.seed), "config_hash": config_hash(),
-            "kpi": "thesis tables 6.5 / 6.6",
+            "kpi": "thesis tables 6.5 / 6.6", "table_6_5_definition": definition,
             "psd": "Welch 2 Hz resolution, mean over a 10 Hz band, dB re 1 g^2/Hz"}
     write_frame(OUT / "table_6_5.parquet", t65, meta)
     write_frame(OUT / "table_6_6.parquet", t66, meta)
-    write_text(OUT / "table_6_5.md", "Table 6.5 - mono-sine rod acceleration peaks, calibrated model vs measured "
-               f"(profile {cfg.profile.name}; {source})\n\n" + kpi.to_markdown(t65))
+    write_text(OUT / "table_6_5.md", "Table 6.5 - mono-sine rod acceleration extremes, calibrated model vs measured "
+               f"(profile {cfg.profile.name}; {source})\n\n" + kpi.flagged_markdown(t65, flags65)
+               + f"\nDefinition: {definition}\n")
     write_text(OUT / "table_6_6.md", "Table 6.6 - PSD of rod acceleration at 200 / 300 Hz [dB re 1 g^2/Hz] "
-               f"(profile {cfg.profile.name}; {source})\n\n" + kpi.to_markdown(t66))
+               f"(profile {cfg.profile.name}; {source})\n\n" + kpi.flagged_markdown(t66, flags66))
     metrics = {}
-    for col in ("Rebound diff [%]", "Compression diff [%]"):
+    for col in (c for c in t65.columns if c.endswith("diff [%]")):
         a = np.abs(t65[col].to_numpy())
         metrics[col] = {"mean_abs": float(a.mean()), "max_abs": float(a.max())}
     for col in ("200 Hz diff [dB]", "300 Hz diff [dB]"):
         a = np.abs(t66[col].to_numpy())
         metrics[col] = {"mean_abs": float(a.mean()), "max_abs": float(a.max())}
+    metrics["flags"] = {"count": len(flags), "thresholds": {k: float(v) for k, v in fl.items()}, "cells": flags}
     write_json(OUT / "metrics.json", metrics)
     write_kpi_plot_data(pd.DataFrame(plot_rows))
     write_json(OUT / "fits.json", fit_summary(cfg))
@@ -96,15 +113,19 @@ def write_kpi_plot_data(rows: pd.DataFrame) -> None:
 
 
 def fit_summary(cfg) -> dict:
-    """Every fit's values and objective before / after (committed with the
-    tables, so the study's calibration can be read without the DVC cache)."""
+    """Every fit's values, objective at the start / GA best / after polish,
+    fitted nuisance values and the parameters its data cannot determine
+    (uncertainty.md in its folder); committed with the tables, so the
+    study's calibration can be read without the DVC cache."""
     fits = {"profile": cfg.profile.name, "fits": {}}
     for ov in sorted(OUT.glob("*/**/overlay.yaml")):
         name = str(ov.parent.relative_to(OUT))
         m = json.loads((ov.parent / "metrics.json").read_text())
         fits["fits"][name] = {"values": read_overlay(ov), "objective_start": m["objective_start"],
+                              "objective_ga": m.get("objective_ga"), "objective_polished": m.get("objective_polished"),
                               "objective_best": m["objective_best"], "failed_simulations": m["failed_simulations"],
-                              "evaluations": m["evaluations"], "uncertainty": m.get("uncertainty")}
+                              "evaluations": m["evaluations"], "uncertainty": m.get("uncertainty"),
+                              "nuisance": m.get("nuisance", {}), "undetermined": m.get("undetermined")}
     return fits
 
 

@@ -10,6 +10,7 @@ from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
 from dampertwin.fitting import study_uncertainty
+from dampertwin.calibration.polish import PolishSettings
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol, recording_rates
 from dampertwin.report import simulate_from_record
@@ -30,13 +31,14 @@ def main() -> None:
     bandwidth = proto.get("sensors", {}).get("force")
     res = fit_compliance(d, meas, cal, GASettings.from_config(cfg.profile.ga.compliance), seed,
                          checkpoint=checkpoint("compliance"), scheduler=cfg.profile.scheduler,
+                         polish_settings=PolishSettings.from_config(cfg.profile.polish),
                          force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
     unc = study_uncertainty("compliance", d, res.best, meas, cutoff=cal["input_cutoff"], force_bandwidth=bandwidth)
     with staged_dir(out) as tmp:  # all outputs or none
         write_fit(tmp, res, meta, "N*s", d.hash(), extra={**res.best, "uncertainty": unc})
-        fitted = d.with_overrides(res.best)
+        fitted = d.with_overrides({k: v for k, v in res.best.items() if not k.startswith("sensor.")})
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
         name, g = runs(meas)[-1]
         for label, dd, st in (("nominal", d, ":"), ("fitted", fitted, "--")):

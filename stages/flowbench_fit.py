@@ -13,6 +13,7 @@ from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
 from dampertwin.fitting import study_uncertainty
+from dampertwin.calibration.polish import PolishSettings
 from dampertwin.io import read_frame
 from dampertwin.simulation import simulate
 from dampertwin.protocols import build_runs, load_protocol, recording_rates
@@ -32,7 +33,8 @@ def main(name: str) -> None:
     out = OUT / "valves" / name
     seed = seed_for(f"flowbench_fit/{name}")
     res = fit_valve(d, valve, meas, cal, GASettings.from_config(cfg.profile.ga.valves), seed, bench=bench,
-                    checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler)
+                    checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler,
+                    polish_settings=PolishSettings.from_config(cfg.profile.polish))
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
     unc = study_uncertainty("valve", d, res.best, meas, cutoff=cal["input_cutoff"], valve=valve, bench=bench)

@@ -12,6 +12,7 @@ from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
 from dampertwin.fitting import study_uncertainty
+from dampertwin.calibration.polish import PolishSettings
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol, recording_rates
 from dampertwin.report import simulate_from_record
@@ -31,8 +32,9 @@ def main(name: str) -> None:
     bandwidth = proto.get("sensors", {}).get("force")
     res, coef, kept = fit_top_mount(d, meas, cal, GASettings.from_config(cfg.profile.ga.topmount), seed,
                               checkpoint=checkpoint(f"topmount_{name}"), scheduler=cfg.profile.scheduler,
+                              polish_settings=PolishSettings.from_config(cfg.profile.polish),
                               force_bandwidth=bandwidth)
-    best = {**res.best, "top_mount.F_LD": coef}
+    best = {**res.best, "top_mount.F_LD": coef}  # sensor.* (nuisance) values are kept out of the overlay
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept}
     d_fit = d.with_overrides({"top_mount.F_LD": coef})  # the static curve the GA ran with
@@ -40,7 +42,7 @@ def main(name: str) -> None:
                             run=cal["dynamic_run"])
     with staged_dir(out) as tmp:  # all outputs or none
         write_fit(tmp, res, meta, "N*s", d.hash(), best=best, extra={"uncertainty": unc})
-        fitted = d.with_overrides(best)
+        fitted = d.with_overrides({k: v for k, v in best.items() if not k.startswith("sensor.")})
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
         g = dict(runs(meas))["random"]
         m = g["time [s]"] <= g["time [s]"].iloc[0] + 2.0

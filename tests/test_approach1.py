@@ -131,6 +131,7 @@ def test_every_fit_beats_the_uncalibrated_design(ci_study):
     assert len(fits["fits"]) == 11  # 8 valves, compliance, 2 top mounts
     for name, f in fits["fits"].items():
         assert f["objective_best"] < f["objective_start"], name
+        assert f["objective_polished"] <= f["objective_ga"] * (1 + 1e-12), name  # the polish never loses
 
 
 @pytest.mark.slow  # runs the ci-profile pipeline (minutes)
@@ -146,7 +147,17 @@ def test_tables_and_plots_are_written(ci_study):
     a1 = repo / "results" / "approach1"
     assert (a1 / "table_6_5.md").read_text().startswith("Table 6.5")
     metrics = json.loads((a1 / "metrics.json").read_text())
-    assert set(metrics) == {"Rebound diff [%]", "Compression diff [%]", "200 Hz diff [dB]", "300 Hz diff [dB]"}
+    assert set(metrics) == {f"{h} {e} diff [%]" for h in ("Rebound", "Compression") for e in ("max", "min")} | {
+        "200 Hz diff [dB]", "300 Hz diff [dB]", "flags"}
+    assert metrics["flags"]["count"] == len(metrics["flags"]["cells"])
+    assert "Definition:" in (a1 / "table_6_5.md").read_text()
+    for fit in ("valves/piston_rebound", "topmount/baseline", "compliance"):
+        unc = json.loads((a1 / fit / "uncertainty.json").read_text())
+        assert {p["parameter"] for p in unc["parameters"]} >= set(
+            json.loads((a1 / "fits.json").read_text())["fits"][fit]["values"]) - {"top_mount.F_LD"}
+        assert (a1 / fit / "uncertainty.md").read_text().startswith("# Identifiability and uncertainty")
+    trend = json.loads((repo / "results" / "sweeps" / "metrics.json").read_text())["table65_trend_agreement"]
+    assert trend["compared"] > 0 and len(trend["disagreeing"]) == trend["compared"] - trend["agree"]
     for case in ("baseline_1.6", "lower_base_intake"):
         assert (a1 / "plots" / case / "monosine.png").stat().st_size > 10_000
         assert (a1 / "plots" / case / "psd.png").stat().st_size > 10_000

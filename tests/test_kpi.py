@@ -43,6 +43,97 @@ def test_rod_acceleration_peaks_robust_to_displacement_noise():
     assert kpi.rod_acceleration_peaks(noisy, 13.0) == kpi.rod_acceleration_peaks(df, 13.0)
 
 
+def _reb_comp_frame(spike_g, f=13.0, cycles=4, fs=50_000.0):
+    """Rod acceleration +3.5 g in the middle of each rebound half and -9 g in
+    each compression half (smooth), with a negative spike of ``spike_g`` [g]
+    early in every rebound half (as a valve opening would give)."""
+    t = np.arange(0, cycles / f, 1 / fs)
+    ph = (f * t) % 1.0
+    x = 0.005 * np.sin(2 * math.pi * f * t)  # rebound (rising x): ph in [0, .25) U [.75, 1)
+    a = np.where(np.cos(2 * math.pi * ph) >= 0, 3.5, 9.0) * np.cos(2 * math.pi * ph)
+    a += spike_g * np.exp(-(((ph - 0.05) / 0.004) ** 2))
+    return pd.DataFrame({"time [s]": t, "displacement [m]": x, "rod acceleration [m/s^2]": a * G})
+
+
+@pytest.mark.parametrize("spike_to", [-3.3, -3.7])
+def test_extremes_do_not_flip_where_the_thesis_peak_does(spike_to):
+    """A spike taking the rebound-half acceleration to -3.3 g vs -3.7 g (the
+    smooth rebound peak is +3.5 g): the thesis' signed max |a| jumps from
+    +3.5 g to -3.7 g (the issue-14 +210 % row); the positive extreme stays
+    at +3.5 g and the negative one moves with the spike by 0.4 g only."""
+    base = 3.5 * math.cos(2 * math.pi * 0.05)
+    df = _reb_comp_frame(spike_to - base)
+    old = kpi.rod_acceleration_peaks(df, 13.0)["rebound"]
+    new = kpi.rod_acceleration_extremes(df, 13.0)
+    assert old == pytest.approx(3.5 if spike_to > -3.5 else spike_to, abs=0.01)
+    assert new["rebound max"] == pytest.approx(3.5, abs=0.01)
+    assert new["rebound min"] == pytest.approx(spike_to, abs=0.01)
+    assert new["compression min"] == pytest.approx(-9.0, abs=0.01)
+    assert new["compression max"] == pytest.approx(0.0, abs=0.01)
+
+
+def test_extremes_average_the_steady_cycles_not_the_last():
+    """One spike per cycle, heights 1, 2, 3, 6 g: with the first cycle left
+    out as transient the rebound max is the mean of 2, 3, 6 g with their std."""
+    f = 13.0
+    df = mono_frame(f=f, cycles=4)
+    df["rod acceleration [m/s^2]"] = 0.0
+    t = df["time [s]"].to_numpy()
+    for k, h in enumerate((1.0, 2.0, 3.0, 6.0)):
+        df.loc[np.argmin(np.abs(t - (k + 0.1) / f)), "rod acceleration [m/s^2]"] = h * G
+    ex = kpi.rod_acceleration_extremes(df, f, transient_cycles=1)
+    assert ex["cycles"] == 3
+    assert ex["rebound max"] == pytest.approx(np.mean([2, 3, 6]))
+    assert ex["rebound max std"] == pytest.approx(np.std([2, 3, 6], ddof=1))
+    assert kpi.rod_acceleration_extremes(df, f, transient_cycles=3)["rebound max"] == pytest.approx(6.0)
+    with pytest.raises(ValueError, match="none steady"):
+        kpi.rod_acceleration_extremes(df, f, transient_cycles=4)
+
+
+def _extreme_rows(sim_reb_max, meas_reb_max=3.5, std=0.05):
+    r = dict(no=8, case="Lower piston rebound stack stiff.", current=1.6)
+    for h in kpi.HALVES:
+        for e in kpi.EXTREMES:
+            r[f"sim_{h}_{e}"] = r[f"meas_{h}_{e}"] = {"max": 3.5, "min": -9.0}[e]
+            r[f"sim_{h}_{e}_std"] = r[f"meas_{h}_{e}_std"] = std
+    r["sim_rebound_max"], r["meas_rebound_max"] = sim_reb_max, meas_reb_max
+    return [r]
+
+
+@pytest.mark.parametrize("sim, flagged", [(3.5 * 0.8, False), (3.5 * 0.7, True), (3.5 * 1.3, True)])
+def test_flag_appears_above_threshold_only(sim, flagged):
+    rows = _extreme_rows(sim)
+    tab = kpi.table_6_5(rows)
+    assert tab["Rebound max diff [%]"].iloc[0] == pytest.approx(kpi.percent_diff(3.5, sim))
+    flags = kpi.flag_table_6_5(tab, rows, threshold_pct=25.0, near_zero_g=1.0)
+    assert [f["column"] for f in flags] == (["Rebound max diff [%]"] if flagged else [])
+    md = kpi.flagged_markdown(tab, flags)
+    assert ("[!1]" in md) == flagged
+    if flagged:
+        assert "likely cause: model or calibration difference" in md
+        assert md.count("[!1]") == 2  # the cell's marker and its footnote
+
+
+def test_flag_causes_are_derived_from_the_data():
+    causes = {}
+    for label, sim, meas, std in (("near zero", 0.1, 0.5, 0.01), ("sign", -3.8, 3.4, 0.01),
+                                  ("scatter", 2.0, 3.0, 1.0)):
+        rows = _extreme_rows(sim, meas, std)
+        flags = kpi.flag_table_6_5(kpi.table_6_5(rows), rows, threshold_pct=25.0, near_zero_g=1.0)
+        assert len(flags) == 1
+        causes[label] = flags[0]["cause"]
+    assert causes["near zero"].startswith("measured extreme near zero")
+    assert causes["sign"].startswith("simulated and measured extremes have opposite signs")
+    assert "cycle-to-cycle scatter" in causes["scatter"]
+
+
+def test_flag_table_6_6_threshold():
+    tab = kpi.table_6_6([dict(no=1, case="Baseline", current=1.6, sim_200=-4.6, meas_200=-7.6, sim_300=-6.0,
+                              meas_300=-5.2)])
+    assert [f["column"] for f in kpi.flag_table_6_6(tab, 1.5)] == ["200 Hz diff [dB]"]
+    assert [f["column"] for f in kpi.flag_table_6_6(tab, 0.5)] == ["200 Hz diff [dB]", "300 Hz diff [dB]"]
+
+
 @pytest.mark.parametrize("sigma_g", [0.05, 0.3])
 def test_white_noise_psd_level(sigma_g):
     """White noise of variance s^2 sampled at fs has the one-sided PSD
@@ -137,7 +228,7 @@ SIGN_FLIPPED_IN_THESIS = {(3, "Compression diff [%]")}
 def test_table_6_5_reproduces_thesis_diff_columns(row):
     no, cur, sr, mr, dr, sc, mc, dc = row
     tab = kpi.table_6_5([dict(no=no, case="Baseline", current=cur, sim_rebound=sr, meas_rebound=mr,
-                              sim_compression=sc, meas_compression=mc)])
+                              sim_compression=sc, meas_compression=mc)], extremes=False)
     assert list(tab.columns)[:3] == ["no.", "Design case", "Active valve current [A]"]
     for col, sim, meas, printed in (("Rebound diff [%]", sr, mr, dr), ("Compression diff [%]", sc, mc, dc)):
         ours = tab[col].iloc[0]

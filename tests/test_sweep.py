@@ -100,3 +100,37 @@ def test_c_params_ofat_config_lists_every_scalar_c_parameter():
     listed = cfg["hydra"]["sweeper"]["params"]["factor"].split(",")
     assert listed == [p.key for p in d.by_type("C") if not isinstance(p.value, tuple)]
 
+
+
+def test_trend_table_reasons_are_derived_not_assumed():
+    """Directions vs thesis table 6.5 (baseline |rebound| 10.7, |compression|
+    9.2 g): each disagreement gets the reason its numbers support."""
+    from dampertwin.sweep import trend_metrics, trend_table
+
+    tab = pd.DataFrame({"case": ["baseline_1.6", "lower_base_intake", "lower_base_compression", "increased_precharge"],
+                        "factor": ["", "", "", ""], "status": ["ok"] * 4,
+                        "rebound peak [g]": [4.0, 5.0, 3.0, 4.02],        # thesis: up, down, down
+                        "compression peak [g]": [-9.0, -9.5, -8.0, -9.3]})  # thesis: down, down, up
+    lab = {"baseline_1.6": (3.5, -9.0), "lower_base_intake": (4.5, -8.0), "lower_base_compression": (3.0, -9.0),
+           "increased_precharge": (3.6, -8.5)}
+    tr = trend_table(tab, lab).set_index(["case", "half-cycle"])
+    assert tr.loc[("lower_base_intake", "rebound"), "agrees"]
+    assert tr.loc[("lower_base_compression", "rebound"), "agrees"]
+    # compression of lower_base_intake: model up (+0.5), thesis down (-0.8), lab down (-1.0): model side
+    assert tr.loc[("lower_base_intake", "compression"), "reason"].startswith("model defect")
+    # compression of lower_base_compression: model down, thesis down -> agrees
+    assert tr.loc[("lower_base_compression", "compression"), "agrees"]
+    # rebound of increased_precharge: +0.02 g simulated, thesis -0.5 g: no direction
+    assert "below the 0.1 g resolution" in tr.loc[("increased_precharge", "rebound"), "reason"]
+    # compression of increased_precharge: model up 0.3, thesis up 0.3 -> agrees
+    assert tr.loc[("increased_precharge", "compression"), "agrees"]
+    tab.loc[3, "rebound peak [g]"] = 4.5  # model up, thesis down, lab up: the lab part's physics
+    lab["increased_precharge"] = (4.0, -9.05)  # and compression: model up 0.3, thesis up 0.3, lab 0.05
+    tab.loc[3, "compression peak [g]"] = -8.5  # model now down: lab has no direction -> unexplained
+    raw = trend_table(tab, lab)
+    tr2 = raw.set_index(["case", "half-cycle"])
+    assert tr2.loc[("increased_precharge", "rebound"), "reason"].startswith("lab sample physics")
+    assert tr2.loc[("increased_precharge", "compression"), "reason"] == "unexplained"
+    m = trend_metrics(raw)
+    assert m["compared"] == len(tr2) and m["agree"] == int(tr2.agrees.sum()) == 3
+    assert {(d["case"], d["half-cycle"]) for d in m["disagreeing"]} == set(tr2.index[~tr2.agrees])

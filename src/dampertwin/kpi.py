@@ -77,9 +77,11 @@ def tube_velocity_sign(df: pd.DataFrame, f: float) -> np.ndarray:
 
 
 def rod_acceleration_peaks(df: pd.DataFrame, frequency: float) -> dict[str, float]:
-    """Table 6.5 KPI (THESIS-ERRATA 38): signed value of max |a| of the rod
-    acceleration [g] in the rebound and in the compression half of the last
-    cycle of a mono-sine at ``frequency`` [Hz]."""
+    """The thesis' literal table-6.5 KPI (THESIS-ERRATA 38): signed value of
+    max |a| of the rod acceleration [g] in the rebound and in the compression
+    half of the last cycle. Kept to document (and test) why it is not used:
+    a small spike of the other sign flips it (issue 14); tables use
+    :func:`rod_acceleration_extremes`."""
     cyc = last_cycle(df, frequency)
     a = cyc[A].to_numpy() / G
     s = tube_velocity_sign(cyc, frequency)
@@ -90,6 +92,46 @@ def rod_acceleration_peaks(df: pd.DataFrame, frequency: float) -> dict[str, floa
             raise ValueError(f"no {name} half-cycle in the last cycle")
         i = np.argmax(np.abs(np.where(m, a, 0.0)))
         out[name] = float(a[i])
+    return out
+
+
+HALVES = ("rebound", "compression")
+EXTREMES = ("max", "min")
+
+
+def rod_acceleration_extremes(df: pd.DataFrame, frequency: float, transient_cycles: int = 1) -> dict[str, float]:
+    """Table 6.5 KPI as used here (issue 14; thesis 6.5 layout): the positive
+    (``max``) and the negative (``min``) extreme of the rod acceleration [g]
+    in the rebound and in the compression half of each steady cycle, averaged
+    over the steady cycles (all full cycles of the record at ``frequency``
+    [Hz], counted back from its end, except the first ``transient_cycles``).
+    Both extremes are reported, so no KPI can change sign because a spike of
+    the other sign grows slightly. Returns ``<half> <max|min>`` (mean [g]),
+    ``<half> <max|min> std`` (cycle-to-cycle std [g]) and ``cycles``."""
+    t = df[T].to_numpy()
+    period = 1.0 / frequency
+    n_full = int(np.floor((t[-1] - t[0] + 1.0 / _fs(t)) * frequency + 1e-6))  # the record spans n samples * dt
+    n = n_full - transient_cycles
+    if n < 1:
+        raise ValueError(f"record of {t[-1] - t[0]:.4g} s holds {n_full} full cycles at {frequency:g} Hz; "
+                         f"{transient_cycles} transient cycle(s) leave none steady")
+    s = tube_velocity_sign(df, frequency)
+    a = df[A].to_numpy() / G
+    vals: dict[str, list[float]] = {f"{h} {e}": [] for h in HALVES for e in EXTREMES}
+    half_dt = 0.5 / _fs(t)
+    for k in range(n):  # cycle k ends k periods before the record's end
+        hi = t[-1] - k * period + half_dt
+        cyc = (t >= hi - period) & (t < hi)
+        for h, sgn in zip(HALVES, (1, -1)):
+            m = cyc & (s == sgn)
+            if not m.any():
+                raise ValueError(f"no {h} half-cycle in steady cycle {k}")
+            vals[f"{h} max"].append(float(a[m].max()))
+            vals[f"{h} min"].append(float(a[m].min()))
+    out: dict[str, float] = {"cycles": n}
+    for key, v in vals.items():
+        out[key] = float(np.mean(v))
+        out[f"{key} std"] = float(np.std(v, ddof=1)) if len(v) > 1 else float("nan")
     return out
 
 
@@ -186,20 +228,103 @@ def dynamic_stiffness(df: pd.DataFrame) -> pd.DataFrame:
 
 
 # ------------------------------------------------------------ thesis tables
-def table_6_5(rows: list[dict]) -> pd.DataFrame:
-    """Thesis table 6.5 layout. Each row: no, case, current, and simulated /
-    measured rod acceleration peaks [g] at rebound and compression.
-    Diff [%] = (measured - simulated) / measured * 100."""
+def table_6_5(rows: list[dict], extremes: bool = True) -> pd.DataFrame:
+    """Thesis table 6.5 layout: no, case, current, then per half-cycle
+    (rebound, compression) simulated / measured rod acceleration [g] and
+    Diff [%] = (measured - simulated) / measured * 100. With ``extremes``
+    each half-cycle has a ``max`` and a ``min`` group (row keys
+    ``sim_<half>_<max|min>``, ``meas_<half>_<max|min>``; see
+    :func:`rod_acceleration_extremes`); without, the thesis' single signed
+    peak per half (row keys ``sim_<half>``, ``meas_<half>``)."""
+    groups = [(h, e) for h in HALVES for e in EXTREMES] if extremes else [(h, None) for h in HALVES]
     out = []
     for r in rows:
-        out.append({
-            "no.": r["no"], "Design case": r["case"], "Active valve current [A]": r["current"],
-            "Rebound simulated [g]": r["sim_rebound"], "Rebound measured [g]": r["meas_rebound"],
-            "Rebound diff [%]": percent_diff(r["meas_rebound"], r["sim_rebound"]),
-            "Compression simulated [g]": r["sim_compression"], "Compression measured [g]": r["meas_compression"],
-            "Compression diff [%]": percent_diff(r["meas_compression"], r["sim_compression"]),
-        })
+        row = {"no.": r["no"], "Design case": r["case"], "Active valve current [A]": r["current"]}
+        for h, e in groups:
+            key, label = (f"{h}_{e}", f"{h.capitalize()} {e}") if e else (h, h.capitalize())
+            row[f"{label} simulated [g]"] = r[f"sim_{key}"]
+            row[f"{label} measured [g]"] = r[f"meas_{key}"]
+            row[f"{label} diff [%]"] = percent_diff(r[f"meas_{key}"], r[f"sim_{key}"])
+        out.append(row)
     return pd.DataFrame(out)
+
+
+TABLE_6_5_DEFINITION = (
+    "Rod acceleration [g], + up. For each half-cycle of the tube motion (rebound: extension; compression) "
+    "`max` is the most positive and `min` the most negative value of the rod acceleration in that half, "
+    "averaged over the steady cycles of the 13 Hz record ({cycles} of {total}; the first {transient} "
+    "left out as transient). Diff [%] = (measured - simulated) / measured x 100 (thesis table 6.5). "
+    "The thesis reports one signed peak per half; reporting both extremes keeps a KPI from changing sign "
+    "when a short spike of the other sign grows slightly (issue 14).")
+
+
+def flag_table_6_5(tab: pd.DataFrame, rows: list[dict], threshold_pct: float, near_zero_g: float,
+                   scatter_sigmas: float = 2.0) -> list[dict]:
+    """Cells of an extremes table 6.5 with |diff| > ``threshold_pct`` [%],
+    each with the likely cause derived from the data (first that applies):
+    a measured extreme near zero (|m| < ``near_zero_g`` [g]); simulated and
+    measured extremes of opposite sign; a difference within
+    ``scatter_sigmas`` cycle-to-cycle standard deviations (row keys
+    ``*_std``); otherwise an unexplained model / calibration difference."""
+    flags = []
+    for (_, t), r in zip(tab.iterrows(), rows):
+        for h in HALVES:
+            for e in EXTREMES:
+                col = f"{h.capitalize()} {e} diff [%]"
+                d = float(t[col])
+                if not abs(d) > threshold_pct:
+                    continue
+                sim, meas = r[f"sim_{h}_{e}"], r[f"meas_{h}_{e}"]
+                sd = math.hypot(r.get(f"sim_{h}_{e}_std", 0.0) or 0.0, r.get(f"meas_{h}_{e}_std", 0.0) or 0.0)
+                if abs(meas) < near_zero_g:
+                    cause = (f"measured extreme near zero (|{meas:.2f}| g < {near_zero_g:g} g): "
+                             "a small absolute difference is a large percentage")
+                elif np.sign(sim) != np.sign(meas):
+                    cause = ("simulated and measured extremes have opposite signs: the extreme is a short feature "
+                             "(e.g. a valve-opening spike) that the model places or sizes differently")
+                elif abs(sim - meas) <= scatter_sigmas * sd:
+                    cause = (f"difference {sim - meas:+.2f} g within {scatter_sigmas:g} sigma of the "
+                             f"cycle-to-cycle scatter ({sd:.2f} g)")
+                else:
+                    cause = "model or calibration difference (unexplained by the checks above)"
+                flags.append({"table": "6.5", "no.": int(t["no."]), "case": str(t["Design case"]),
+                              "current [A]": float(t["Active valve current [A]"]), "column": col, "diff": d,
+                              "threshold": threshold_pct, "cause": cause})
+    return flags
+
+
+def flag_table_6_6(tab: pd.DataFrame, threshold_db: float) -> list[dict]:
+    """Cells of table 6.6 with |diff| > ``threshold_db`` [dB]. No cause can
+    be derived from the PSD levels alone: stated as unexplained."""
+    flags = []
+    for _, t in tab.iterrows():
+        for col in ("200 Hz diff [dB]", "300 Hz diff [dB]"):
+            d = float(t[col])
+            if abs(d) > threshold_db:
+                flags.append({"table": "6.6", "no.": int(t["no."]), "case": str(t["Design case"]),
+                              "current [A]": float(t["Active valve current [A]"]), "column": col, "diff": d,
+                              "threshold": threshold_db,
+                              "cause": "model or calibration difference (unexplained from the PSD levels)"})
+    return flags
+
+
+def flagged_markdown(tab: pd.DataFrame, flags: list[dict], digits: int = 1) -> str:
+    """:func:`to_markdown` with each flagged cell marked ``[!n]`` and a
+    numbered footnote per flag (threshold, likely cause)."""
+    marks = {(f["no."], f["column"]): i + 1 for i, f in enumerate(flags)}
+    cells = tab.astype(object).copy()
+    for (no, col), n in marks.items():
+        i = int(np.flatnonzero(tab["no."].to_numpy() == no)[0])
+        cells.iat[i, tab.columns.get_loc(col)] = f"{tab[col].iloc[i]:+.{digits}f} [!{n}]"
+    md = to_markdown(cells, digits)
+    if flags:
+        md += "\nFlagged cells (|diff| above the threshold of conf/compare.yaml):\n\n"
+        md += "".join(f"- [!{i + 1}] row {f['no.']} ({f['case']}, {f['current [A]']:g} A), {f['column']} = "
+                      f"{f['diff']:+.{digits}f} (threshold {f['threshold']:g}): likely cause: {f['cause']}\n"
+                      for i, f in enumerate(flags))
+    else:
+        md += "\nNo cell above the flag threshold of conf/compare.yaml.\n"
+    return md
 
 
 def table_6_6(rows: list[dict]) -> pd.DataFrame:

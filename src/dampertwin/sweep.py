@@ -41,6 +41,10 @@ from .variants import check_current
 log = logging.getLogger("dampertwin.sweep")
 ROOT_ENV = "DAMPERTWIN_ROOT"
 COMPLETE, FAILED = "_COMPLETE.json", "_FAILED.json"
+# "rebound peak" is the positive extreme of the rebound half-cycle, "compression
+# peak" the negative extreme of the compression half, each averaged over the
+# steady cycles (kpi.rod_acceleration_extremes): the directions of the thesis'
+# table-6.5 peaks, without their sign flips (issue 14)
 KPIS = ("rebound peak [g]", "compression peak [g]", "PSD 200 Hz [dB]", "PSD 300 Hz [dB]", "peak rod force [N]")
 # thesis table 6.5, measured column (rebound, compression peaks [g]) for the trend check
 THESIS_MEASURED = {
@@ -169,8 +173,8 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
             f["current [A]"] = runs[0].current
             write_frame(out / f"{test}.parquet", f, {**meta, "protocol": test})
             if test == "monosine":
-                pk = kpi.rod_acceleration_peaks(f, proto["frequency"])
-                row["rebound peak [g]"], row["compression peak [g]"] = pk["rebound"], pk["compression"]
+                pk = kpi.rod_acceleration_extremes(f, proto["frequency"])  # steady cycles, both extremes
+                row["rebound peak [g]"], row["compression peak [g]"] = pk["rebound max"], pk["compression min"]
                 row["peak rod force [N]"] = float(np.max(np.abs(kpi.last_cycle(f, proto["frequency"])["rod force [N]"])))
             if test == "random":
                 lv = kpi.psd_levels(f)
@@ -238,6 +242,75 @@ def trend_agreement(tab: pd.DataFrame) -> tuple[int, int]:
         agree += int((a[m] == b[m]).sum())
         total += int(m.sum())
     return agree, total
+
+
+TREND_RESOLUTION = 0.1  # [g] the thesis prints table 6.5 to 0.1 g: smaller changes have no direction
+
+
+def lab_peaks(measured_dir: Path, frequency: float) -> dict[str, tuple[float, float]]:
+    """(rebound, compression) peaks [g] of each case's measured mono-sine
+    record (``<measured_dir>/<case>.parquet``), same definition as the sweep."""
+    from .io import read_frame
+
+    out = {}
+    for p in sorted(Path(measured_dir).glob("*.parquet")):
+        pk = kpi.rod_acceleration_extremes(read_frame(p, "monosine")[0], frequency)
+        out[p.stem] = (pk["rebound max"], pk["compression min"])
+    return out
+
+
+def trend_table(tab: pd.DataFrame, lab: dict[str, tuple[float, float]] | None = None,
+                resolution: float = TREND_RESOLUTION) -> pd.DataFrame:
+    """Per table-6.5 case and half-cycle: the change of |peak| vs the
+    baseline [g] simulated, in the thesis' measured column and (if given)
+    on the lab sample's measurements, whether the simulated direction agrees
+    with the thesis, and a reason derived from the numbers when it does not:
+    a change below ``resolution`` [g] has no direction; a simulated direction
+    the lab sample shares points to the lab sample's physics differing from
+    the thesis' part; one the lab sample contradicts points to the model or
+    its calibration; otherwise "unexplained"."""
+    ok = tab[(tab.get("factor", "") == "") & (tab.status == "ok")].set_index("case")
+    if BASELINE_CASE not in ok.index:
+        return pd.DataFrame()
+    rows = []
+    for case in ok.index:
+        if case == BASELINE_CASE or case not in THESIS_MEASURED:
+            continue
+        for j, half in enumerate(("rebound", "compression")):
+            col = f"{half} peak [g]"
+            d_sim = abs(ok.loc[case, col]) - abs(ok.loc[BASELINE_CASE, col])
+            d_th = abs(THESIS_MEASURED[case][j]) - abs(THESIS_MEASURED[BASELINE_CASE][j])
+            d_lab = (abs(lab[case][j]) - abs(lab[BASELINE_CASE][j])
+                     if lab and case in lab and BASELINE_CASE in lab else np.nan)
+            if abs(d_th) < resolution:
+                continue  # no thesis direction to compare with
+            agree = bool(np.sign(d_sim) == np.sign(d_th)) and abs(d_sim) >= resolution
+            if agree:
+                reason = ""
+            elif abs(d_sim) < resolution:
+                reason = f"simulated change {d_sim:+.2f} g below the {resolution:g} g resolution: no direction"
+            elif np.isfinite(d_lab) and abs(d_lab) >= resolution and np.sign(d_lab) == np.sign(d_sim):
+                reason = ("lab sample physics vs thesis part: the lab measurement moves the same way as the "
+                          f"model ({d_lab:+.2f} g)")
+            elif np.isfinite(d_lab) and abs(d_lab) >= resolution and np.sign(d_lab) == np.sign(d_th):
+                reason = f"model defect or calibration: the lab measurement moves as the thesis ({d_lab:+.2f} g)"
+            else:
+                reason = "unexplained"
+            rows.append({"case": case, "half-cycle": half, "change simulated [g]": float(d_sim),
+                         "change thesis measured [g]": float(d_th), "change lab measured [g]": float(d_lab),
+                         "agrees": agree, "reason": reason})
+    return pd.DataFrame(rows)
+
+
+def trend_metrics(trend: pd.DataFrame) -> dict:
+    """metrics.json entry: agreeing / compared directions, and the cases that
+    disagree with their reason."""
+    if trend.empty:
+        return {"agree": 0, "compared": 0, "disagreeing": []}
+    bad = trend[~trend.agrees]
+    return {"agree": int(trend.agrees.sum()), "compared": int(len(trend)),
+            "disagreeing": [{"case": r["case"], "half-cycle": r["half-cycle"], "reason": r["reason"]}
+                            for _, r in bad.iterrows()]}
 
 
 try:  # the Hydra callback that writes the summary when a multirun ends

@@ -21,8 +21,9 @@ from ..errors import UserError
 from ..excitation import Excitation
 from ..io import runs
 from ..sensors import sensor_lowpass
-from ..simulation import simulate_batch
+from ..simulation import batch_status_text, simulate_batch
 from .ga import Evaluator, FitResult, GASettings, ParamSpec, run_ga
+from .polish import PolishSettings, Records, polish
 
 SHIM_VALVES = ("piston_rebound", "base_compression")
 
@@ -37,11 +38,14 @@ def integral_abs_error(t: np.ndarray, measured: np.ndarray, simulated: np.ndarra
 
 
 def specs_from_config(design: Design, items: list, prefix: str = "",
-                      where: str = "calibration config") -> list[ParamSpec]:
+                      where: str = "calibration config", nuisance: dict[str, float] | None = None) -> list[ParamSpec]:
     """Search space: each item names a parameter and either absolute
     ``bounds`` or a ``window`` of factors on the nominal value; windows are
     clipped to the design's calibration bounds (thesis tables 6.1 / 6.4).
-    A bad item raises UserError (a ValueError) naming ``where`` and the item."""
+    ``nuisance`` gives the nominal values of fitted quantities that are not
+    design parameters (``sensor.*``: the bench's measurement chain, e.g. a
+    transducer bandwidth documented as ``nuisance[key]``). A bad item raises
+    ValueError naming ``where`` and the item."""
     specs = []
     if not isinstance(items, list) or not items:
         raise UserError(f"{where}: expected a non-empty list of parameters to fit")
@@ -54,11 +58,16 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
         if it.get("scale", "lin") not in ("lin", "log"):
             raise UserError(f"{label}: scale must be 'lin' or 'log'")
         key = prefix + it["name"] if "name" in it else it["key"]
-        try:
-            value = design[key]
-            p = design.param(key) if not key.startswith("constants.") else None
-        except KeyError as e:
-            raise UserError(f"{label}: unknown design parameter {key!r}: {e}") from None
+        if key.startswith(NUISANCE):
+            if not nuisance or nuisance.get(key) is None:
+                raise ValueError(f"{label}: nuisance parameter {key!r} has no documented nominal value here")
+            value, p = float(nuisance[key]), None
+        else:
+            try:
+                value = design[key]
+                p = design.param(key) if not key.startswith("constants.") else None
+            except KeyError as e:
+                raise ValueError(f"{label}: unknown design parameter {key!r}: {e}") from None
         rng = it.get("bounds", it.get("window"))
         if not (isinstance(rng, list) and len(rng) == 2 and all(isinstance(x, (int, float)) for x in rng)):
             raise UserError(f"{label}: bounds / window must be two numbers")
@@ -77,73 +86,105 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
     return specs
 
 
-def _batch_objective(design: Design, specs, cases, configuration: str, channel, max_wall_s: float | None = None,
-                     **sim_kw):
-    """A batch objective over several records: sum of eq. 6.x integrals.
-    Returns (values, reasons): a member whose design is invalid, whose
-    simulation raises, stops early or yields non-finite output is NaN with
-    its reason; the rest of the population is scored. Each simulate_batch
-    call is capped at ``max_wall_s`` [s] (profile config)."""
-    keys = [s.key for s in specs]
+NUISANCE = "sensor."  # fitted quantities of the measurement chain, not of the design
 
-    def f(X: np.ndarray):
+
+def trapezoid_weights(t: np.ndarray) -> np.ndarray:
+    """w with sum_i w_i y_i = np.trapezoid(y, t) [s]."""
+    dt = np.diff(t)
+    w = np.zeros(len(t))
+    w[:-1] += dt / 2
+    w[1:] += dt / 2
+    return w
+
+
+def _records(design: Design, specs, cases, configuration: str, channel, max_wall_s: float | None = None,
+             **sim_kw) -> Records:
+    """Residuals measured - simulated of a batch of parameter rows over
+    several records, with the reason of every failed row (NaN row): an
+    invalid design, a simulation that stops early or is not finite; the rest
+    of the population is scored. Design keys go to the design, ``sensor.*``
+    keys to the channel (measurement chain). Each simulate_batch call is
+    capped at ``max_wall_s`` [s] (profile config)."""
+    keys = [s.key for s in specs]
+    dk = [i for i, k in enumerate(keys) if not k.startswith(NUISANCE)]
+    nk = [i for i, k in enumerate(keys) if k.startswith(NUISANCE)]
+
+    def residuals(X: np.ndarray):
+        X = np.atleast_2d(X)
         n = len(X)
         designs: list = [None] * n
         reasons: list = [None] * n
-        for i, row in enumerate(X):
+        for j, row in enumerate(X):
             try:
-                designs[i] = design.with_overrides(dict(zip(keys, map(float, row))))
+                designs[j] = design.with_overrides({keys[i]: float(row[i]) for i in dk})
             except DesignError as e:
-                reasons[i] = "invalid design: " + "; ".join(e.errors)
-        J = np.zeros(n)
+                reasons[j] = "invalid design: " + "; ".join(e.errors)
+        nuis = {keys[i]: X[:, i] for i in nk}
+        parts = []
         for t, measured, ex, extra in cases:
-            live = [i for i in range(n) if reasons[i] is None]
-            if not live:
-                break
-            sims = _simulate_members([designs[i] for i in live], ex, configuration, t, channel, max_wall_s,
-                                     {**sim_kw, **extra})
-            for i, (sim, why) in zip(live, sims):
-                if why is None and len(sim) != len(t):
-                    raise ValueError(f"simulated record has {len(sim)} samples, the measured one {len(t)}: "
-                                     f"the simulation must cover the whole record (no truncation)")
-                if why is None and not np.all(np.isfinite(sim)):
-                    why = "simulation output not finite"
-                if why is not None:
-                    reasons[i] = why
-                    continue
-                J[i] += integral_abs_error(t, measured, sim)
-        J[[i for i in range(n) if reasons[i] is not None]] = np.nan
-        return J, reasons
+            R = np.full((n, len(t)), np.nan)
+            live = [j for j in range(n) if reasons[j] is None]
+            groups = [live] if live else []
+            while groups:
+                grp = groups.pop()
+                try:
+                    _, ch, status = simulate_batch([designs[j] for j in grp], ex, configuration,
+                                                   rate=1.0 / (t[1] - t[0]), duration=t[-1] - t[0],
+                                                   channels=list(channel.sources), max_wall_s=max_wall_s,
+                                                   **sim_kw, **extra)
+                except (ValueError, ArithmeticError) as e:
+                    if len(grp) > 1:  # one bad member must not lose the population: run each alone
+                        groups.extend([j] for j in grp)
+                    else:
+                        reasons[grp[0]] = f"simulation failed: {e}"
+                else:
+                    sim = channel(ch, {k: v[grp] for k, v in nuis.items()})
+                    for m, j in enumerate(grp):
+                        if status[m] != 0:
+                            reasons[j] = f"simulation stopped: {batch_status_text(status[m:m + 1])[0]}"
+                            continue
+                        if len(sim[m]) < len(t):
+                            raise ValueError(f"simulated record has {len(sim[m])} samples, the measured one "
+                                             f"{len(t)}: the simulation must cover the whole record (no truncation)")
+                        r = measured - sim[m][: len(t)]
+                        if not np.all(np.isfinite(r)):
+                            reasons[j] = "simulation output not finite"
+                            continue
+                        R[j] = r
+            parts.append(R)
+        R = np.hstack(parts)
+        R[[j for j in range(n) if reasons[j] is not None]] = np.nan
+        return R, reasons
 
-    return f
+    return Records(residuals, np.concatenate([trapezoid_weights(c[0]) for c in cases]))
 
 
-def _simulate_members(designs, ex, configuration, t, channel, max_wall_s, kw) -> list[tuple]:
-    """[(simulated channel, failure reason or None)] per design. One batch
-    call; if it raises (one bad member must not lose the population), each
-    member is run alone and the one that raises is marked with its error."""
-    rate = 1.0 / (t[1] - t[0])
-    if int(round((t[-1] - t[0]) * rate)) + 1 != len(t):  # jittered clock: the mean rate gives the record's length
-        rate = (len(t) - 1) / (t[-1] - t[0])
-    call = dict(rate=rate, duration=t[-1] - t[0], channels=list(channel.sources), max_wall_s=max_wall_s, **kw)
-    try:
-        _, ch, status = simulate_batch(designs, ex, configuration, **call)
-        sim = channel(ch)
-        return [(sim[i], None if status[i] == 0 else f"simulation stopped (status {int(status[i])}: "
-                 f"step, wall-time ({max_wall_s} s) or solver failure)") for i in range(len(designs))]
-    except Exception as e:  # noqa: BLE001 - isolate the failing member below
-        if len(designs) == 1:  # a member's failure is its reason, not the end of the fit
-            return [(None, f"simulation raised {type(e).__name__}: {' '.join(str(e).split())[:200]}")]
-    return [m for d in designs for m in _simulate_members([d], ex, configuration, t, channel, max_wall_s, kw)]
+def _batch_objective(design: Design, specs, cases, configuration: str, channel, max_wall_s: float | None = None,
+                     **sim_kw):
+    """A batch objective over several records: (sum of eq. 6.x integrals
+    int |measured - simulated| dt, reason per failed member)."""
+    return _records(design, specs, cases, configuration, channel, max_wall_s, **sim_kw).scores
 
 
 class _Channel:
+    """Simulated signal compared with a record: ``fn(channels, nuisance)``
+    with nuisance a dict key -> per-row values of the fitted ``sensor.*``."""
+
     def __init__(self, sources, fn):
         self.sources = sources
         self.fn = fn
 
-    def __call__(self, ch):
-        return self.fn(ch)
+    def __call__(self, ch, nuisance=None):
+        return self.fn(ch, nuisance or {})
+
+
+def _fit(records: Records, specs, res_fn, polish_settings: PolishSettings | None, label: str, progress: bool):
+    res = res_fn()
+    if polish_settings is not None:
+        res = polish(records, specs, res, polish_settings, label=f"{label} polish", progress=progress)
+    res.specs, res.records = specs, records
+    return res
 
 
 def _context(design: Design, measured: pd.DataFrame) -> str:
@@ -176,8 +217,11 @@ def _record_input(df: pd.DataFrame, column: str, kind: str, cutoff: float):
 
 
 def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, settings: GASettings, seed: int, *,
-              bench: dict, checkpoint=None, scheduler=None, progress=True) -> FitResult:
-    """Fit one valve's stiffness (and shim friction) to its flow-bench record."""
+              bench: dict, checkpoint=None, scheduler=None, progress=True,
+              polish_settings: PolishSettings | None = None) -> FitResult:
+    """Fit one valve's stiffness, preload (and shim friction) to its
+    flow-bench record: GA, then (with ``polish_settings``) local polish and
+    uncertainty at the optimum."""
     kind = "shim" if valve in SHIM_VALVES else "intake"
     specs = specs_from_config(design, cal.get(kind), prefix=f"{valve}.",
                               where=f"conf/calibration/valves.yaml: {kind}")
@@ -185,38 +229,49 @@ def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, set
     for _, g in runs(measured):
         t, ex = _record_input(g, "flow [m^3/s]", "flow", _need(cal, "input_cutoff", "conf/calibration/valves.yaml"))
         cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
-    ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
-    f = _batch_objective(design, specs, cases, "valve", ch, settings.max_wall_s, bench=bench)
+    ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"),
+                  lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
+    rec = _records(design, specs, cases, "valve", ch, settings.max_wall_s, bench=bench)
     x0 = {s.key: design[s.key] for s in specs}
-    return run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
-                  label=f"valve {valve}", progress=progress, context=_context(design, measured))
+    return _fit(rec, specs, lambda: run_ga(specs, Evaluator(rec.scores, scheduler), settings, seed, x0=x0,
+                                           checkpoint=checkpoint, label=f"valve {valve}", progress=progress,
+                                           context=_context(design, measured)),
+                polish_settings, f"valve {valve}", progress)
 
 
-def _through_sensor(column: str, bandwidth: float | None, fs: float) -> "_Channel":
+def _through_sensor(column: str, bandwidth: float | None, fs: float, key: str = "sensor.force_bandwidth") -> "_Channel":
     """Compare through the bench's measurement chain: the simulated signal
-    passes the transducer's documented bandwidth (NaN rows left as they are)."""
-    def fn(c):
+    passes the transducer's bandwidth [Hz], the documented one or, when
+    ``key`` is fitted as a nuisance parameter, each row's own (NaN rows
+    left as they are)."""
+    def fn(c, nuis):
         X = c[column]
-        return np.array([sensor_lowpass(r, bandwidth, fs) if np.all(np.isfinite(r)) else r for r in X])
+        bw = nuis.get(key, [bandwidth] * len(X))
+        return np.array([sensor_lowpass(r, b, fs) if np.all(np.isfinite(r)) else r for r, b in zip(X, bw)])
 
     return _Channel((column,), fn)
 
 
 def fit_compliance(design: Design, measured: pd.DataFrame, cal: dict, settings: GASettings, seed: int, *,
-                   checkpoint=None, scheduler=None, progress=True, force_bandwidth: float | None = None) -> FitResult:
+                   checkpoint=None, scheduler=None, progress=True, force_bandwidth: float | None = None,
+                   polish_settings: PolishSettings | None = None) -> FitResult:
     """Fit gas content and oil bulk modulus to the damper-level sine test;
-    the simulated force passes the force transducer's bandwidth."""
-    specs = specs_from_config(design, cal.get("parameters"), where="conf/calibration/compliance.yaml: parameters")
+    the simulated force passes the force transducer's bandwidth (documented,
+    or fitted as ``sensor.force_bandwidth`` when the config lists it)."""
+    specs = specs_from_config(design, cal.get("parameters"), where="conf/calibration/compliance.yaml: parameters",
+                              nuisance={"sensor.force_bandwidth": force_bandwidth})
     cases = []
     for _, g in runs(measured):
         t, ex = _record_input(g, "displacement [m]", "displacement",
                               _need(cal, "input_cutoff", "conf/calibration/compliance.yaml"))
         cases.append((t, g["force [N]"].to_numpy(), ex, {"current": float(g["current [A]"].iloc[0])}))
     ch = _through_sensor("rod force [N]", force_bandwidth, 1.0 / (cases[0][0][1] - cases[0][0][0]))
-    f = _batch_objective(design, specs, cases, "damper", ch, settings.max_wall_s)
-    x0 = {s.key: design[s.key] for s in specs}
-    return run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
-                  label="compliance", progress=progress, context=_context(design, measured))
+    rec = _records(design, specs, cases, "damper", ch, settings.max_wall_s)
+    x0 = {s.key: (design[s.key] if not s.key.startswith(NUISANCE) else force_bandwidth) for s in specs}
+    return _fit(rec, specs, lambda: run_ga(specs, Evaluator(rec.scores, scheduler), settings, seed, x0=x0,
+                                           checkpoint=checkpoint, label="compliance", progress=progress,
+                                           context=_context(design, measured)),
+                polish_settings, "compliance", progress)
 
 
 def fit_static_curve(measured: pd.DataFrame, run: str, order: int = 5) -> list[float]:
@@ -232,25 +287,29 @@ def fit_static_curve(measured: pd.DataFrame, run: str, order: int = 5) -> list[f
 
 
 def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: GASettings, seed: int, *,
-                  checkpoint=None, scheduler=None, progress=True,
-                  force_bandwidth: float | None = None) -> tuple[FitResult, list[float], str]:
+                  checkpoint=None, scheduler=None, progress=True, force_bandwidth: float | None = None,
+                  polish_settings: PolishSettings | None = None) -> tuple[FitResult, list[float], str]:
     """Static curve by least squares, then the dynamic parameters by GA on
     the random record (eq. 6.3). The least-squares curve is kept only if it
     lowers eq. 6.3 with the nominal dynamics (the quasi-static record also
     holds relaxation forces); otherwise the nominal curve stays. The fit thus
     never ends worse than the uncalibrated design. Returns (result, static
-    curve coefficients, which curve was kept)."""
+    curve coefficients, which curve was kept). The force transducer's
+    bandwidth is fitted with the dynamics when the config lists
+    ``sensor.force_bandwidth`` (a real bench's differs from its datasheet;
+    left fixed, the top-mount parameters absorb the difference, issue 14)."""
     where = "conf/calibration/topmount.yaml"
     static = _need(cal, "static", where)
     ls_coef = fit_static_curve(measured, _need(static, "run", where + ": static"),
                                _need(static, "order", where + ": static"))
     specs = specs_from_config(design, cal.get("parameters"), prefix="top_mount.",
-                              where="conf/calibration/topmount.yaml: parameters")
+                              where="conf/calibration/topmount.yaml: parameters",
+                              nuisance={"sensor.force_bandwidth": force_bandwidth})
     g = _run_of(measured, _need(cal, "dynamic_run", where), where + ": dynamic_run")
     t, ex = _record_input(g, "displacement [m]", "displacement", _need(cal, "input_cutoff", where))
     cases = [(t, g["force [N]"].to_numpy(), ex, {})]
     ch = _through_sensor("top mount force [N]", force_bandwidth, 1.0 / (t[1] - t[0]))
-    x0 = {s.key: design[s.key] for s in specs}
+    x0 = {s.key: (design[s.key] if not s.key.startswith(NUISANCE) else force_bandwidth) for s in specs}
     row0 = np.array([[x0[s.key] for s in specs]])
     d_ls = design.with_overrides({"top_mount.F_LD": ls_coef})
     j_nominal = float(_batch_objective(design, specs, cases, "topmount", ch, settings.max_wall_s)(row0)[0][0])
@@ -259,8 +318,10 @@ def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: G
         d, coef, kept = d_ls, ls_coef, "least squares (thesis 7.2)"
     else:
         d, coef, kept = design, list(design["top_mount.F_LD"]), "nominal (least squares raised eq. 6.3)"
-    f = _batch_objective(d, specs, cases, "topmount", ch, settings.max_wall_s)
-    res = run_ga(specs, Evaluator(f, scheduler), settings, seed, x0=x0, checkpoint=checkpoint,
-                 label="top mount", progress=progress, context=_context(design, measured))
+    rec = _records(d, specs, cases, "topmount", ch, settings.max_wall_s)
+    res = _fit(rec, specs, lambda: run_ga(specs, Evaluator(rec.scores, scheduler), settings, seed, x0=x0,
+                                          checkpoint=checkpoint, label="top mount", progress=progress,
+                                          context=_context(design, measured)),
+               polish_settings, "top mount", progress)
     res.start_objective = j_nominal  # "before" = the uncalibrated design: nominal curve and dynamics
     return res, coef, kept

@@ -27,6 +27,7 @@ import pandas as pd
 from ..errors import UserError
 
 INFEASIBLE = 1e30  # objective of a failed simulation
+TOP_KEPT = 10  # best distinct members returned (start points of a local polish)
 
 
 class FitError(UserError):
@@ -87,6 +88,12 @@ class FitResult:
     failed: int
     evaluations: int
     failures: dict = field(default_factory=dict)  # reason -> count of infeasible members
+    top: list[np.ndarray] = field(default_factory=list)  # genes of the best distinct members, best first
+    objective_ga: float = float("nan")  # best objective of the GA alone (before any local polish)
+    polish: dict = field(default_factory=dict)  # local polish report (calibration.polish)
+    uncertainty: dict = field(default_factory=dict)  # calibration.uncertainty at the optimum
+    specs: list = field(default_factory=list)  # the fitted quantities (set by the approach-1 fits)
+    records: object = None  # calibration.polish.Records of the fit: re-evaluates its objective
 
 
 def split_scores(r, n: int) -> tuple[np.ndarray, list]:
@@ -213,15 +220,17 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
     rows.append({"generation": settings.generations, "best": float(J.min()),
                  "mean": float(np.mean(J[J < INFEASIBLE])) if np.any(J < INFEASIBLE) else float("nan"),
                  "failed": int(np.sum(J >= INFEASIBLE))})
-    best_key = min(cache, key=cache.get)
+    ranked = sorted((k_ for k_ in cache if cache[k_] < INFEASIBLE), key=cache.get) or [min(cache, key=cache.get)]
+    best_key = ranked[0]
     gb = np.frombuffer(best_key, dtype=float)
     best = {s.key: float(s.to_value(gb[j])) for j, s in enumerate(specs)}
     start = float(objective(g0[None, :])[0]) if g0 is not None else float("nan")
     if cache[best_key] >= INFEASIBLE:
         raise FitError(f"{label}: every simulation of the fit failed ({counters['evals']} evaluations); "
                            f"reasons: {failures}")
+    top = [np.frombuffer(k_, dtype=float).copy() for k_ in ranked[:TOP_KEPT]]
     return FitResult(best, cache[best_key], start, pd.DataFrame(rows), counters["failed"], counters["evals"],
-                     dict(failures))
+                     dict(failures), top=top, objective_ga=cache[best_key])
 
 
 def _save(path: Path, pop, gen, rows, cache, counters, sig, failures=None):
