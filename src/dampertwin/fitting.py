@@ -543,7 +543,7 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
             t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
             cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
         files.append((str(p), cases))
-    ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
+    ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
     prob = _Problem(d, "valve", ch, files, {"bench": cfg.get("bench")} if cfg.get("bench") else {})
 
     def plots(o, problem, sims):
@@ -651,7 +651,7 @@ def study_uncertainty(submodel: str, design: Design, best: dict, measured: pd.Da
             t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
             cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
         ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"),
-                      lambda c: c["p upstream [Pa]"] - c["p downstream [Pa]"])
+                      lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
         prob = _Problem(design, "valve", ch, [("record", cases)], {"bench": bench} if bench else {})
     else:
         col, cfg = ("rod force [N]", "damper") if submodel == "compliance" else ("top mount force [N]", "topmount")

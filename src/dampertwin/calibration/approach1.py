@@ -133,11 +133,11 @@ def _records(design: Design, specs, cases, configuration: str, channel, max_wall
                                                    rate=1.0 / (t[1] - t[0]), duration=t[-1] - t[0],
                                                    channels=list(channel.sources), max_wall_s=max_wall_s,
                                                    **sim_kw, **extra)
-                except (ValueError, ArithmeticError) as e:
+                except Exception as e:  # noqa: BLE001  (a raising member must not lose the population)
                     if len(grp) > 1:  # one bad member must not lose the population: run each alone
                         groups.extend([j] for j in grp)
                     else:
-                        reasons[grp[0]] = f"simulation failed: {e}"
+                        reasons[grp[0]] = f"simulation failed: {type(e).__name__}: {e}"
                 else:
                     sim = channel(ch, {k: v[grp] for k, v in nuis.items()})
                     for m, j in enumerate(grp):
