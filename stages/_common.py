@@ -66,6 +66,12 @@ def staged_dir(out: Path):
             shutil.rmtree(tmp, ignore_errors=True)
 
 
+def design_values(best: dict) -> dict:
+    """A fit's values without its nuisance parameters (``sensor.*``: the
+    measurement chain, never design overrides)."""
+    return {k: v for k, v in best.items() if not k.startswith("sensor.")}
+
+
 def measured_dir() -> Path:
     """The measurement folder the stages read: params.yaml `measured`
     (default data/measured, the lab's output; e.g. data/own for your own)."""

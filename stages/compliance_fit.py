@@ -4,8 +4,8 @@ baseline valve fits applied."""
 
 import matplotlib.pyplot as plt
 
-from _common import (measured_dir, CONF, OUT, baseline, checkpoint, config, read_overlay, seed_for, stage, staged_dir,
-                     write_fit)
+from _common import (CONF, OUT, baseline, checkpoint, config, design_values, measured_dir, read_overlay, seed_for,
+                     stage, staged_dir, write_fit)
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
@@ -35,7 +35,8 @@ def main() -> None:
                          force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
-    unc = study_uncertainty("compliance", d, res.best, meas, cutoff=cal["input_cutoff"], force_bandwidth=bandwidth)
+    unc = study_uncertainty("compliance", d, design_values(res.best), meas, cutoff=cal["input_cutoff"],
+                            force_bandwidth=res.best.get("sensor.force_bandwidth", bandwidth))
     with staged_dir(out) as tmp:  # all outputs or none
         write_fit(tmp, res, meta, "N*s", d.hash(), extra={**res.best, "uncertainty": unc})
         fitted = d.with_overrides({k: v for k, v in res.best.items() if not k.startswith("sensor.")})

@@ -5,8 +5,8 @@ squares and GA fit of the AutoBushFD parameters on the random record
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from _common import (CONF, OUT, baseline, checkpoint, choice, config, seed_for, stage, staged_dir,
-                     write_fit, measured_dir)
+from _common import (CONF, OUT, baseline, checkpoint, choice, config, design_values, measured_dir, seed_for, stage,
+                     staged_dir, write_fit)
 from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
@@ -38,7 +38,8 @@ def main(name: str) -> None:
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept}
     d_fit = d.with_overrides({"top_mount.F_LD": coef})  # the static curve the GA ran with
-    unc = study_uncertainty("topmount", d_fit, res.best, meas, cutoff=cal["input_cutoff"], force_bandwidth=bandwidth,
+    unc = study_uncertainty("topmount", d_fit, design_values(res.best), meas, cutoff=cal["input_cutoff"],
+                            force_bandwidth=res.best.get("sensor.force_bandwidth", bandwidth),
                             run=cal["dynamic_run"])
     with staged_dir(out) as tmp:  # all outputs or none
         write_fit(tmp, res, meta, "N*s", d.hash(), best=best, extra={"uncertainty": unc})
