@@ -80,8 +80,11 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
     t66 = pd.read_parquet(study / "table_6_6.parquet")
     fits = json.loads((study / "fits.json").read_text())
     metrics = json.loads((study / "metrics.json").read_text())
-    t65f, flags65 = _flag_rows(t65, [c for c in t65.columns if "diff [%]" in c], PEAK_FLAG_PCT, "%")
-    t66f, flags66 = _flag_rows(t66, [c for c in t66.columns if "diff [dB]" in c], PSD_FLAG_DB, "dB")
+    # the thresholds compare used (conf/compare.yaml, in metrics.json), else the defaults here
+    thr = (metrics.get("flags") or {}).get("thresholds", {})
+    peak_pct, psd_db = float(thr.get("percent", PEAK_FLAG_PCT)), float(thr.get("dB", PSD_FLAG_DB))
+    t65f, flags65 = _flag_rows(t65, [c for c in t65.columns if "diff [%]" in c], peak_pct, "%")
+    t66f, flags66 = _flag_rows(t66, [c for c in t66.columns if "diff [dB]" in c], psd_db, "dB")
     fr, fit_flags = fit_rows(fits)
     profile = fits.get("profile", "?")
     md = [f"# Approach-1 study report (profile `{profile}`)", ""]
@@ -95,10 +98,11 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
     md += ["## Flags", ""]
     all_flags = flags65 + flags66 + fit_flags
     md += [f"- {f}" for f in all_flags] or ["- none"]
-    md += ["", f"Thresholds: |peak diff| > {PEAK_FLAG_PCT:g} %, |PSD diff| > {PSD_FLAG_DB:g} dB, relative std > 1 "
+    md += ["", f"Thresholds: |peak diff| > {peak_pct:g} %, |PSD diff| > {psd_db:g} dB, relative std > 1 "
            "or a singular Jacobian = poorly identified.", ""]
     md += ["## Summary metrics", "", _md_table(pd.DataFrame(
-        [{"metric": k, "mean abs diff": v["mean_abs"], "max abs diff": v["max_abs"]} for k, v in metrics.items()])), ""]
+        [{"metric": k, "mean abs diff": v["mean_abs"], "max abs diff": v["max_abs"]} for k, v in metrics.items()
+         if isinstance(v, dict) and "mean_abs" in v])), ""]
     md += ["## Table 6.5 - mono-sine rod acceleration peaks [g]", "", _md_table(t65f), ""]
     md += ["## Table 6.6 - random-test rod acceleration PSD [dB re 1 g^2/Hz]", "", _md_table(t66f), ""]
     md += ["## Fitted parameters", ""]
