@@ -89,9 +89,12 @@ def groups_from_config(design: Design, cal: dict) -> tuple[list[GAGroup], GAGrou
     return groups, comp
 
 
-def check_damper_record(df: pd.DataFrame, where: str, runs_wanted=None) -> pd.DataFrame:
+def check_damper_record(df: pd.DataFrame, where: str, runs_wanted=None, tail_s: float | None = None) -> pd.DataFrame:
     """A damper-level record (training / verification): the columns it needs
-    and the runs asked for (``runs_wanted``: labels, None = all)."""
+    and the runs asked for (``runs_wanted``: labels, None = all); with
+    ``tail_s`` [s] only the last ``tail_s`` seconds of each run (the ci
+    profile: 1.95 s = the 10 mm-stroke bursts of the training signal, which
+    start in a rest, so the model starts from rest)."""
     miss = [c for c in DAMPER_COLUMNS if c not in df]
     if miss:
         raise UserError(f"{where}: missing column(s) {miss}; a damper-level record needs {list(DAMPER_COLUMNS)}")
@@ -102,6 +105,15 @@ def check_damper_record(df: pd.DataFrame, where: str, runs_wanted=None) -> pd.Da
             raise UserError(f"{where}: no run(s) {bad}; runs present: {', '.join(map(str, have))} "
                             f"(conf/profile/*.yaml approach2.runs)")
         df = df[df["run"].astype(str).isin([str(r) for r in runs_wanted])]
+    if tail_s is not None:
+        if not tail_s > 0:
+            raise UserError(f"{where}: tail_s = {tail_s!r}; expected a positive duration [s] (conf/profile/*.yaml "
+                            "approach2.tail_s)")
+        parts = []
+        for _, g in runs(df):
+            t = g["time [s]"].to_numpy()
+            parts.append(g[t >= t[-1] - tail_s])
+        df = pd.concat(parts, ignore_index=True)
     return df
 
 
