@@ -99,3 +99,32 @@ def test_failed_members_are_infeasible_not_fatal():
     res = run_concurrent(GROUPS, BatchScorer(fn, 5), s, seed=1, progress=False)
     assert res.failed > 0 and "simulation stopped: step cap" in res.failures
     assert res.best["v1.a"] <= 2.8
+
+
+def test_elites_are_rescored_with_their_new_partners():
+    """Every combined individual is scored once; an individual is a new one
+    (and simulated) as soon as one group's chromosome changes, e.g. an elite
+    paired with another group's new elite."""
+    seen = []
+
+    def fn(X):
+        seen.extend(map(bytes, np.round(X, 12)))  # parameter rows as evaluated
+        return scorer()(X)
+
+    s = GASettings(population=8, reproduction_ratio=75, generations=4, mutation_probability=15)
+    res = run_concurrent(GROUPS, BatchScorer(fn, 5), s, seed=4, progress=False)
+    assert len(seen) == len(set(seen)) == res.evaluations  # one simulation per distinct individual
+    # every population is scored in full (cached or new): each generation brought new individuals
+    assert (res.history["evaluations"].diff().dropna() > 0).all()
+
+
+def test_dask_scheduler_runs_the_same_code_path():
+    import distributed  # a dev dependency
+
+    s = GASettings(population=8, reproduction_ratio=75, generations=3, mutation_probability=15)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc:
+        sc = BatchScorer(scorer(), 5, scheduler=lc.scheduler_address, chunks=3)
+        on_cluster = run_concurrent(GROUPS, sc, s, seed=6, progress=False)
+        sc._client.close()
+    local = run_concurrent(GROUPS, BatchScorer(scorer(), 5), s, seed=6, progress=False)
+    assert on_cluster.best == local.best and on_cluster.best_objective == local.best_objective
