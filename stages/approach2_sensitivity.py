@@ -29,6 +29,7 @@ def main() -> None:
                                          bandwidth=proto.get("sensors", {}).get("force"),
                                          max_wall_s=float(p2.ga.max_wall_s))
     wall = time.perf_counter() - t0
+    print(f"approach2_sensitivity: {res.meta['runs']} runs in {wall:.1f} s wall", flush=True)  # not an artifact: same config, same bytes
     W = sens.weights(res.S1, prob.time, wset)
     df = res.to_frame(prob.time)
     G = len(res.groups)
@@ -48,7 +49,7 @@ def main() -> None:
         plt.close(fig)
         live = ~res.masked
         write_json(tmp / "metrics.json", {
-            "runs": res.meta["runs"], "n_base": settings.n_base, "wall_s": wall,
+            "runs": res.meta["runs"], "n_base": settings.n_base,
             "masked_instants": int(res.masked.sum()), "instants": int(len(res.masked)),
             "mean_S1": {g: float(np.mean(res.S1[i, live])) for i, g in enumerate(res.groups)},
             "mean_conf": {g: float(np.mean(res.S1_conf[i, live])) for i, g in enumerate(res.groups)},
