@@ -159,8 +159,9 @@ def first_order(Y: np.ndarray, n_groups: int, *, second_order: bool = True, num_
     sd = np.where(finite, np.nanstd(np.where(np.isfinite(Y), Y, np.nan), axis=0), 0.0)
     scale = float(sd.max()) if sd.size and np.any(sd > 0) else 0.0
     masked = ~finite | (sd <= mask_rel_std * scale) | (sd <= EPS)
-    # SALib: rng = np.random.default_rng(seed).integers when seed, else np.random.randint
-    rng = np.random.default_rng(seed) if seed else np.random.default_rng()
+    # SALib draws with np.random.default_rng(seed).integers when seed is truthy (same resamples here);
+    # it leaves seed 0 / None unseeded, this module never does: every draw is seeded
+    rng = np.random.default_rng(seed if seed else 0)
     r = rng.integers(N, size=(N, num_resamples))
     z = norm.ppf(0.5 + conf_level / 2)
     T = Y.shape[1]
