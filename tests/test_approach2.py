@@ -78,6 +78,15 @@ def test_bad_config_names_file_and_key():
         a2.SensitivitySettings.from_config({"n_bse": 3})
     with pytest.raises(UserError, match="no run"):
         a2.check_damper_record(pd.DataFrame({c: [0.0] for c in a2.DAMPER_COLUMNS}).assign(run="I1.6"), "f", ["I9"])
+    t = np.arange(0, 3.0, 0.01)
+    two = pd.concat([pd.DataFrame({"time [s]": t, "displacement [m]": 0.0, "force [N]": 0.0, "current [A]": c,
+                                   "run": f"I{c:g}"}) for c in (0.9, 1.6)], ignore_index=True)
+    tail = a2.check_damper_record(two, "f", None, 1.0)
+    n = tail.groupby("run").size()
+    assert set(n.index) == {"I0.9", "I1.6"} and n.between(100, 101).all()  # the last 1 s of each run
+    assert tail["time [s]"].min() >= 1.98
+    with pytest.raises(UserError, match="tail_s"):
+        a2.check_damper_record(two, "f", None, -1.0)
 
 
 def test_table_7_1_and_7_2_conventions_match_the_thesis_rows():
