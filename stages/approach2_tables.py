@@ -26,6 +26,12 @@ PEAK_DEFINITION = ("Rod acceleration peak [g], + up: rebound = most positive val
                    "(measured - simulated) / |measured| x 100 (thesis table 7.1 convention).")
 
 
+def md(tab, digits=1):
+    """Markdown of a table, the current printed as the thesis does (0.32, not 0.3)."""
+    col = "Active valve current [A]"
+    return kpi.to_markdown(tab.assign(**{col: tab[col].map("{:g}".format)}) if col in tab else tab, digits)
+
+
 def by_run(df):
     return {name: g for name, g in runs(df)}
 
@@ -84,10 +90,10 @@ def main() -> None:
     write_frame(OUT2 / "table_7_1.parquet", t71, meta)
     write_frame(OUT2 / "table_7_2.parquet", t72, meta)
     write_text(OUT2 / "table_7_1.md", f"Table 7.1 - 16 Hz mono-sine rod acceleration peaks, approach 2 vs measured "
-               f"(profile {cfg.profile.name}; {source})\n\n" + kpi.to_markdown(t71)
+               f"(profile {cfg.profile.name}; {source})\n\n" + md(t71)
                + "\nDefinition: " + PEAK_DEFINITION.format(n=n_tr) + "\n")
     write_text(OUT2 / "table_7_2.md", f"Table 7.2 - PSD of rod acceleration at 200 / 300 Hz [dB re 1 g^2/Hz], "
-               f"approach 2 vs measured (profile {cfg.profile.name}; {source})\n\n" + kpi.to_markdown(t72)
+               f"approach 2 vs measured (profile {cfg.profile.name}; {source})\n\n" + md(t72)
                + "\nDifference [dB] = |simulated - measured| (thesis table 7.2 and 6.6 convention).\n")
     write_text(OUT2 / "verification.md", "Damper-force verification on the pseudo-random signal (thesis L1561; "
                f"{source})\n\n" + kpi.to_markdown(ver, 3))
@@ -106,7 +112,7 @@ def main() -> None:
     write_text(OUT2 / "side_by_side.md", "Approach 1 vs approach 2 on the same lab data "
                f"(profile {cfg.profile.name}; {source}); lower is better\n\n" + kpi.to_markdown(side, 3)
                + "\nPer-approach tables 7.1 / 7.2:\n\n" + "".join(
-                   f"### {ap}\n\n" + kpi.to_markdown(tables[ap][0]) + "\n" + kpi.to_markdown(tables[ap][1]) + "\n"
+                   f"### {ap}\n\n" + md(tables[ap][0]) + "\n" + md(tables[ap][1]) + "\n"
                    for ap in APPROACHES))
     for _, r in side.iterrows():
         metrics[r["approach"]] = {k: float(v) for k, v in r.items() if k != "approach"}
