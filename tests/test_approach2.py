@@ -47,6 +47,10 @@ def test_shipped_protocols_for_approach2():
     assert ms["configuration"] == "module" and ms["frequency"] == 16.0
     assert 2 * np.pi * ms["frequency"] * ms["amplitude"] == pytest.approx(0.5, rel=0.01)  # 0.5 m/s, 10 mm stroke
     assert {r.name for r in build_runs(ms)} == {"I1.6", "I0.9", "I0.32"}
+    from dampertwin.lab import plan  # the lab records all three (one file each, all currents)
+
+    assert {("training", "baseline"), ("verification", "baseline"), ("monosine16", "baseline"),
+            ("monosine", "baseline_1.6")} <= set(plan(CONF))
 
 
 def test_sensitivity_and_concurrent_fit_on_a_lab_record(short_training, tmp_path):
