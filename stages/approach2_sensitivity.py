@@ -49,7 +49,8 @@ def main() -> None:
         plt.close(fig)
         live = ~res.masked
         write_json(tmp / "metrics.json", {
-            "runs": res.meta["runs"], "n_base": settings.n_base,
+            "runs": res.meta["runs"], "n_base": settings.n_base, "failed_runs": res.meta["failed_runs"],
+            "dropped_base_samples": res.meta["dropped_base_samples"],
             "masked_instants": int(res.masked.sum()), "instants": int(len(res.masked)),
             "mean_S1": {g: float(np.mean(res.S1[i, live])) for i, g in enumerate(res.groups)},
             "mean_conf": {g: float(np.mean(res.S1_conf[i, live])) for i, g in enumerate(res.groups)},

@@ -101,3 +101,22 @@ def test_bad_settings_name_the_key():
         sens.sample(_groups(), 30, seed=1)
     with pytest.raises(UserError, match="unknown key"):
         sens.WeightSettings.from_config({"smoothing": 1})
+
+
+def test_failed_runs_drop_their_base_sample_block():
+    groups = _groups()
+    t = np.linspace(0, 1, 101)
+
+    def out(X):
+        Y = _model(X, t)
+        Y[[3, 50], 10:] = np.nan  # two failed simulations, in base samples 0 and 6 (blocks of 2G + 2 = 8 runs)
+        return Y
+
+    res, Y = sens.run(groups, out, 64, seed=1, num_resamples=10)
+    assert res.meta["failed_runs"] == 2 and res.meta["dropped_base_samples"] == 2
+    assert Y.shape[0] == (64 - 2) * 8 and np.all(np.isfinite(Y))
+    ref, _ = sens.run(groups, lambda X: _model(X, t), 64, seed=1, num_resamples=10)
+    early = (t > 0) & (t < 0.3)
+    assert np.allclose(res.S1[0, early], ref.S1[0, early], atol=0.1)  # still the same answer
+    with pytest.raises(UserError, match="at least 2"):
+        sens.run(groups, lambda X: np.full((len(X), 5), np.nan), 4, seed=1)

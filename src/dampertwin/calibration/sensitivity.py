@@ -194,21 +194,29 @@ def run(groups: Sequence[Group], output: Callable[[np.ndarray], np.ndarray], n_b
         second_order: bool = True, num_resamples: int = 100, conf_level: float = 0.95,
         mask_rel_std: float = 1e-9) -> tuple[SobolResult, np.ndarray]:
     """Sample, evaluate ``output(values [n, k]) -> (n, T)`` (any model
-    output; one batch call), analyse. Runs whose output is not finite make
-    their instants masked, so a failed simulation is visible, not hidden:
-    the number of failed runs is in ``result.meta``. Returns (result, Y)."""
+    output; one batch call), analyse. A run whose output is not finite (a
+    failed simulation) invalidates its base sample's block of the Saltelli
+    design (A, AB_j, BA_j, B); such blocks are left out, the estimate uses
+    the remaining base samples (independent draws, so it stays unbiased),
+    and ``result.meta`` says how many were dropped; fewer than 2 complete
+    blocks is an error. Returns (result, Y) with Y the complete blocks."""
     _, X = sample(groups, n_base, seed, second_order)
     Y = np.asarray(output(X), float)
     if Y.ndim != 2 or Y.shape[0] != len(X):
         raise ValueError(f"sensitivity output must be (runs={len(X)}, instants), got {Y.shape}")
-    failed = int(np.sum(~np.all(np.isfinite(Y), axis=1)))
-    if failed:
-        raise UserError(f"sensitivity: {failed} of {len(X)} simulations failed; the Saltelli estimator needs "
-                        f"every run (narrow the search windows or raise the wall-time cap)")
+    step = len(X) // n_base
+    ok_run = np.all(np.isfinite(Y), axis=1)
+    ok_block = ok_run.reshape(n_base, step).all(axis=1)
+    if ok_block.sum() < 2:
+        raise UserError(f"sensitivity: {int((~ok_run).sum())} of {len(X)} simulations failed, leaving "
+                        f"{int(ok_block.sum())} complete base samples of {n_base}; the estimator needs at least 2 "
+                        f"(narrow the search windows or raise the wall-time cap)")
+    Y = Y.reshape(n_base, step, -1)[ok_block].reshape(-1, Y.shape[1])
     res = analyse(Y, groups, second_order=second_order, num_resamples=num_resamples, conf_level=conf_level,
                   seed=seed, mask_rel_std=mask_rel_std)
     res.meta.update({"runs": len(X), "n_base": n_base, "seed": seed, "second_order": second_order,
-                     "num_resamples": num_resamples, "masked_instants": int(res.masked.sum())})
+                     "num_resamples": num_resamples, "masked_instants": int(res.masked.sum()),
+                     "failed_runs": int((~ok_run).sum()), "dropped_base_samples": int((~ok_block).sum())})
     return res, Y
 
 
