@@ -5,10 +5,12 @@ run from dividing by zero. Pure functions, no I/O."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..design import Design
+from ..design.schema import EFFECT_PARAMETERS
 from .bench import BENCH_BACK_PRESSURE, BENCH_VOLUME
 from .layout import N_PARAMS, PARAMETERS, P, initial_state, state_scales  # noqa: F401  (re-exported)
 from .valves import V_SIZE, VALVE_NAMES, VALVE_PARAMETERS, V
@@ -24,6 +26,8 @@ def _value(decl, design: Design, effects: dict) -> float:
         return 0.0
     if callable(src):
         return float(src(design))
+    if src in EFFECT_PARAMETERS:  # "<effect>.<name>": 0.0 if the design does not declare it (effect then off)
+        return float(design.effect_params[src].value) if src in design.effect_params else 0.0
     group, name = src.split(".", 1)
     if group == "effects":
         return 1.0 if effects[name] else 0.0
@@ -48,6 +52,11 @@ def pack(design: Design, current: float = 1.6, effects: dict | None = None,
     missing = set(EFFECT_INDEX) - set(eff)
     if missing:
         raise ValueError(f"design {design.name!r}: effects {sorted(missing)} not set")
+    for name, on in eff.items():
+        lacking = [k for k in EFFECT_PARAMETERS if on and k.startswith(name + ".") and k not in design.effect_params]
+        if lacking:
+            raise ValueError(f"design {design.name!r}: effect {name!r} is switched on but the design does not "
+                             f"declare {', '.join(lacking)} (section effect_parameters)")
     p = np.zeros(N_PARAMS)
     for decl in PARAMETERS:
         p[P[decl.name]] = _value(decl, design, eff)
@@ -98,3 +107,58 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
         need(p[P.M_ROD] > 0, f"geometry.M_rod = {p[P.M_ROD]!r}; expected > 0")
         need(p[P.TM_FLD0] > 0, f"top_mount.F_LD[0] = {p[P.TM_FLD0]!r}; expected > 0 (static stiffness)")
     return bad
+
+
+@dataclass(frozen=True)
+class EffectRecord:
+    """One switchable effect of the model: what it is, whether the thesis
+    has it (its own optional effect) or it is new (README "Effect library"),
+    the KPI it moves and in which direction, and the test that shows it."""
+
+    name: str
+    description: str
+    thesis: bool
+    kpi: str
+    direction: str
+    test: str
+
+
+_T = "tests/test_simulation.py::test_effect_switch"
+_E = "tests/test_effects.py::test_effect_moves_kpi"
+# Every effect switch (design ``effects:``), the README table is checked against it.
+EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
+    EffectRecord("gas_content", "free gas in the emulsion, eq. 4.14-4.16", True,
+                 "compression-chamber stiffness", "lower with more gas", _T),
+    EffectRecord("wall_compliance", "tube wall compliance, eq. 4.17-4.18", True,
+                 "chamber stiffness", "lower with softer walls", _T),
+    EffectRecord("cavitation", "chamber modulus fades at the vapour pressure", True,
+                 "force at reversal after cavitation", "force lag", "tests/test_simulation.py"),
+    EffectRecord("valve_stiction", "squeeze-film stiction of intake discs, eq. 4.25", True,
+                 "intake opening delay", "later", _T),
+    EffectRecord("shim_friction", "Dahl friction of shim stacks, eq. 4.26", True,
+                 "valve hysteresis", "wider", _T),
+    EffectRecord("jet_force", "flow momentum force, eq. 4.24", True, "valve opening", "larger", _T),
+    EffectRecord("flow_number_cq", "Cq(lambda), eq. 4.30-4.31", True, "low-flow restriction", "higher", _T),
+    EffectRecord("slot_restriction", "slot in series with the valve opening (errata 25)", True,
+                 "high-speed force", "higher", _T),
+    EffectRecord("rod_friction", "LuGre rod friction, eq. 4.38-4.41", True, "force at zero speed", "offset", _T),
+    EffectRecord("top_mount_dynamics", "AutoBushFD rubber dynamics, eq. 4.32-4.36", True,
+                 "top-mount force at frequency", "stiffer / damped", _T),
+    EffectRecord("piston_leakage", "laminar leakage past a worn piston band", False,
+                 "rebound peak force (damper, mono-sine 13 Hz)", "lower", _E),
+    EffectRecord("active_valve_lag", "first-order lag of the active valve's flow (tau)", False,
+                 "force-velocity loop phase lag at 16 Hz", "larger", _E),
+    EffectRecord("aeration", "free air in the compression chamber (Boyle)", False,
+                 "compression force build-up after reversal (compliance)", "lower / later", _E),
+    EffectRecord("valve_friction_current", "current-dependent Coulomb friction of the active spool", False,
+                 "third-tube pressure / rebound peak force", "higher", _E),
+    EffectRecord("oil_thermal", "oil temperature state; viscosity and bulk modulus follow it", False,
+                 "peak force late in a long run", "lower", _E),
+    EffectRecord("rod_friction_asymmetric", "rod seal friction higher in rebound than compression", False,
+                 "friction force rebound vs compression", "rebound larger, compression smaller", _E),
+    EffectRecord("top_mount_backlash", "free play of the top mount (smoothed dead zone)", False,
+                 "top-mount force amplitude (top-mount sine)", "lower", _E),
+    EffectRecord("seal_friction_pressure", "rod seal friction growing with rebound pressure", False,
+                 "friction force in rebound", "larger", _E),
+)}
+assert set(EFFECTS_LIBRARY) == set(EFFECT_INDEX), sorted(set(EFFECTS_LIBRARY) ^ set(EFFECT_INDEX))
