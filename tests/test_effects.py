@@ -105,6 +105,11 @@ def _entry(doc, key):
     (lambda d: _entry(d, "aeration.alpha0").update(unit="%"), "expected the SI unit"),
     (lambda d: d["effects"].update(aeration=True) or d["effect_parameters"].remove(_entry(d, "aeration.alpha0")),
      "aeration is on but its parameter"),
+    (lambda d: _entry(d, "active_valve_lag.tau").update(effect=[1]), "unknown effect [1]"),
+    (lambda d: _entry(d, "active_valve_lag.tau").update(typical=True), "typical True is not a finite number"),
+    (lambda d: _entry(d, "active_valve_lag.tau").update(bounds=[1, "a"]), "bounds must be [lower, upper]"),
+    (lambda d: _entry(d, "active_valve_lag.tau").update(name="tau_x"), "unknown parameter 'tau_x'"),
+    (lambda d: d.update(effect_parameters={"a": 1}), "'effect_parameters' must be a list"),
 ])
 def test_loader_errors_name_file_and_key(tmp_path, mutate, message):
     doc = _doc()

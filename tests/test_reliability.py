@@ -20,7 +20,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from dampertwin.design import DesignError, load, loads
+from dampertwin.design import CONSTANTS, DesignError, load, loads
 from dampertwin.design.description import _Dumper
 from dampertwin.errors import UserError
 from dampertwin.io import DataError, read_frame, write_frame
@@ -548,7 +548,7 @@ FUZZ_VALUES = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integ
 @settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", 40)), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(edits=st.lists(st.tuples(st.sampled_from(NUMS), st.sampled_from(["value", "bounds", "unit", "type"]),
                                 FUZZ_VALUES), min_size=1, max_size=3),
-       cedits=st.lists(st.tuples(st.integers(0, 27), st.sampled_from(["name", "value", "unit", "type"]),
+       cedits=st.lists(st.tuples(st.integers(0, len(CONSTANTS) - 1), st.sampled_from(["name", "value", "unit", "type"]),
                                  FUZZ_VALUES), max_size=2),
        effect=st.one_of(st.none(), st.tuples(st.sampled_from(["jet_force", "cavitation", "x"]), FUZZ_VALUES)),
        junk=st.one_of(st.none(), st.binary(max_size=40)))

@@ -1,4 +1,5 @@
-"""The design description: 105 parameters, constants, effect switches.
+"""The design description: 105 parameters, constants, effect switches and
+the parameters of the optional effects (``effect_parameters:``).
 
 A :class:`Design` is immutable. ``load`` reads and validates a YAML file;
 ``Design.with_overrides`` returns a validated copy (variants and calibration
@@ -792,7 +793,7 @@ def _parse_effect_parameters(items, effects, where, errors) -> dict[str, EffectP
         eff, nm = item.get("effect"), item.get("name")
         key = f"{eff}.{nm}"
         label = f"{where}: effect parameter {key!r}"
-        if eff not in EFFECTS:
+        if not isinstance(eff, str) or eff not in EFFECTS:
             errors.append(f"{label}: unknown effect {eff!r}; expected one of {', '.join(EFFECTS)}")
             continue
         if key not in EFFECT_PARAMETERS:
