@@ -250,12 +250,15 @@ class Fit:
 
 
 def gauss_newton(problem: Problem, base: Design, fixed: dict, params: list, mask: np.ndarray, iterations: int,
-                 step: float, label: str, S0: Row | None = None, J0: dict | None = None) -> Fit:
+                 step: float, label: str, S0: Row | None = None, J0: dict | None = None,
+                 prior: dict | None = None) -> Fit:
     """Bounded Levenberg-Marquardt on the whitened features of ``mask``
     (scipy ``lsq_linear`` per step). Jacobian columns come from ``J0`` (key
     -> d z / d u, e.g. the sensitivity batch) or one finite-difference batch
     at the start; later steps update them (Broyden), so an iteration costs
-    one simulation per record."""
+    one simulation per record. ``prior`` (key -> (value, sigma in u)) keeps
+    parameters near a value (Tikhonov rows: a refit of many parameters on few
+    records must not trade miscalibration for overfitting)."""
     from scipy.optimize import lsq_linear
 
     def design_at(u):
@@ -287,14 +290,21 @@ def gauss_newton(problem: Problem, base: Design, fixed: dict, params: list, mask
     for k, i in enumerate(fd):
         col = (problem.z(rows[k]) - z_cur) / hs[k]
         J[:, i] = np.where(np.isfinite(col), col, 0.0)
-    best = (chi(z_cur, mask), u.copy(), S_cur, z_cur)
+    prior = prior or {}
+    pc = np.array([params[i].to_u(prior[p.key][0]) if p.key in prior else 0.0 for i, p in enumerate(params)])
+    pw = np.array([1.0 / prior[p.key][1] if p.key in prior else 0.0 for p in params])
+
+    def obj(z, u):
+        return chi(z, mask) + float(np.sum((pw * (u - pc)) ** 2))
+
+    best = (obj(z_cur, u), u.copy(), S_cur, z_cur)
     lam = 1e-2
     for it in range(iterations):
         if not params or not np.isfinite(best[0]):
             break
         u, S_cur, z_cur = best[1].copy(), best[2], best[3]
-        A = np.vstack([J[mask], math.sqrt(lam) * np.eye(len(params))])
-        bb = np.concatenate([-z_cur[mask], np.zeros(len(params))])
+        A = np.vstack([J[mask], np.diag(pw), math.sqrt(lam) * np.eye(len(params))])
+        bb = np.concatenate([-z_cur[mask], -pw * (u - pc), np.zeros(len(params))])
         du = lsq_linear(A, bb, bounds=(-u - 1e-12, 1.0 - u + 1e-12)).x
         if np.max(np.abs(du)) < 1e-4:
             break
@@ -304,7 +314,7 @@ def gauss_newton(problem: Problem, base: Design, fixed: dict, params: list, mask
         z_new = problem.z(S_new)
         if np.all(np.isfinite(z_new)):  # Broyden update of the Jacobian along the step
             J += np.outer(z_new - z_cur - J @ du, du) / float(du @ du)
-        c_new = chi(z_new, mask)
+        c_new = obj(z_new, u_new)
         if c_new < best[0]:
             best = (c_new, u_new, S_new, z_new)
             lam = max(lam / 3, 1e-4)
@@ -438,9 +448,11 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     gain = np.array([(Jc[train, i] @ r) ** 2 / max(Jc[train, i] @ Jc[train, i], 1e-300) for i in range(len(pool))])
     order = [i for i in np.argsort(-gain) if gain[i] > 0][: int(prof["calibration"]["max_params"])]
     sel = [pool[i] for i in order]
+    ps = float(dcfg.get("prior_sigma", 0.1))
+    prior = {p.key: (p.start, ps) for p in sel}  # the design's own values
     log.append("calibration refit of " + ", ".join(p.key for p in sel) + " (largest sensitivity along the residual)")
     cal = gauss_newton(problem, design, {}, sel, train, int(prof["calibration"]["iterations"]), step, "calibration refit",
-                       S0=S0, J0={pool[i].key: Jc[:, i] for i in order})
+                       S0=S0, J0={pool[i].key: Jc[:, i] for i in order}, prior=prior)
     z_cal = problem.z(cal.S)
     res["cal"] = cal
     mz_cal_h, mz_cal_all = mean_z2(z_cal, held), mean_z2(z_cal, allm)
@@ -486,9 +498,16 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     fits: dict[str, Fit] = {}
     cal_start = [FitParam(p.key, p.lo, p.hi, cal.values[p.key]) for p in sel]
     its = int(prof["candidates"]["iterations"])
+    n_tr = max(problem.n_eff("train"), 2)
     for c in top:
-        fits[c.name] = gauss_newton(problem, design, c.overrides(), c.params + cal_start, train, its, step,
-                                    f"refit {c.name}", J0=cal.J)
+        # (a) the effect alone on the design, (b) the effect with the calibration parameters (prior
+        # at the design's values); the one with the lower penalised training chi^2 is kept
+        fa = gauss_newton(problem, design, c.overrides(), c.params, train, its, step, f"refit {c.name}")
+        fb = gauss_newton(problem, design, c.overrides(), c.params + cal_start, train, its, step,
+                          f"refit {c.name} + calibration", J0={**cal.J, **fa.J}, prior=prior)
+        ca = chi(problem.z(fa.S), train) + len(c.params) * math.log(n_tr)
+        cb = chi(problem.z(fb.S), train) + (len(c.params) + len(cal_start)) * math.log(n_tr)
+        fits[c.name] = fa if ca <= cb else fb
     # pairs of the best candidates
     n_pairs = int(prof["candidates"].get("pairs", 0))
     pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]][:n_pairs]
@@ -498,13 +517,15 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
                  for p in pc.params]
         J0 = {**cal.J, **{k: v for n in (a.name, b.name) for k, v in fits[n].J.items() if k not in cal.J}}
         fits[pc.name] = gauss_newton(problem, design, pc.overrides(), start + cal_start, train, its, step,
-                                     f"refit {pc.name}", J0=J0)
+                                     f"refit {pc.name}", J0=J0, prior=prior)
         top.append(pc)
     res["fits"] = fits
 
     # 4. Decide on held-out data -----------------------------------------------------
     n_eff = max(problem.n_eff("train"), 2)
-    chi_cal_h = chi(z_cal, held)
+    # reference: the better of the design under test and its calibration refit on held-out data
+    ref = cal if chi(z_cal, held) <= chi(z0, held) else Fit("design under test", [], {}, design, S0, {})
+    chi_cal_h = chi(problem.z(ref.S), held)
     nh = int(held.sum())
     stats = {}
     for c in top:
@@ -521,7 +542,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     wins = dict.fromkeys(names, 0)
     for _ in range(B):
         boot = [rng.integers(0, u.n_cycles, u.n_cycles) for u in units]
-        cb = chi(problem.z(cal.S, boot), held)
+        cb = chi(problem.z(ref.S, boot), held)
         g = {n: cb - chi(problem.z(fits[n].S, boot), held) - stats[n]["penalty"] for n in names}
         if g:
             bn = max(g, key=g.get)
@@ -533,7 +554,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     for n, st in stats.items():
         log.append(f"{n}: held-out chi2 gain {st['gain']:.1f} after a penalty of {st['penalty']:.1f} "
                    f"({st['k']} parameter(s) x ln {n_eff} cycles), closes {100 * st['closed']:.0f} % of the "
-                   f"held-out gap left by calibration, wins {100 * st['share']:.0f} % of {B} cycle bootstraps")
+                   f"held-out gap left by the {'calibration refit' if ref is cal else 'design under test'}, wins {100 * st['share']:.0f} % of {B} cycle bootstraps")
     viable = [n for n in names if stats[n]["gain"] > 0 and stats[n]["closed"] >= float(dcfg["min_closed"])]
     cand_rows = []
     for c, e, _ in ranking:
