@@ -13,7 +13,7 @@ import numpy as np
 
 from conftest import ROOT
 from dampertwin.design import load
-from dampertwin.lab import load_sample, sample_design
+from dampertwin.lab import _sensor_specs, load_sample, sample_design
 from dampertwin.variants import load_variant
 
 SENSOR_COLUMNS = {"sensor.force_bandwidth": "force [N]"}
@@ -33,7 +33,8 @@ def true_values(keys, case: str | None, sample: str | Path = "sample.yaml") -> d
     """The lab sample's true value of each fitted key (``sensor.*``: the
     bench's real transducer bandwidth)."""
     d, s = true_design(case, sample)
-    return {k: float(s["benches"]["bandwidth"][SENSOR_COLUMNS[k]]) if k.startswith("sensor.") else float(d[k])
+    return {k: float(_sensor_specs(s["benches"])[SENSOR_COLUMNS[k]]["corner"]) if k.startswith("sensor.")
+            else float(d[k])
             for k in keys}
 
 

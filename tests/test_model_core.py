@@ -224,3 +224,28 @@ def test_the_hub_reads_only_the_chamber_states_and_parameters():
     assert used_params and used_params <= own_params, used_params - own_params
     used_states = set(re.findall(r"\bS\.(\w+)", src))
     assert used_states <= {s.name for s in chambers.STATES}, used_states
+
+
+def test_sparsity_cache_tells_the_flow_bench_valves_apart(base):
+    """The flow bench's valve selector changes the equations (intake valves
+    and shim valves have other states): a probe cached for one valve must not
+    serve another. Same result with a fresh cache as after another valve's run."""
+    from dampertwin import simulation
+    from dampertwin.protocols import build_runs, load_protocol
+
+    fb = load_protocol(ROOT / "conf" / "test" / "flowbench.yaml")
+    bench = {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
+    runs = {r.bench_valve: r for r in build_runs(fb)}
+
+    def run(valve):
+        r = runs[valve]
+        return simulate(base, r.excitation, "valve", bench_valve=valve, rate=r.rate, bench=bench, rtol=1e-6,
+                        duration=0.5)
+
+    simulation._SPARSITY_CACHE.clear()
+    fresh = run("base_compression")
+    simulation._SPARSITY_CACHE.clear()
+    run("piston_intake")
+    after = run("base_compression")
+    assert fresh.ok and after.ok
+    assert np.array_equal(fresh["dp [Pa]"], after["dp [Pa]"])

@@ -1,4 +1,4 @@
-"""Command line: ``dampertwin design show|check``, ``plot``, ``import``, ``fit``."""
+"""Command line: ``dampertwin design show|check``, ``plot``, ``import``, ``fit``, ``lab``."""
 
 from __future__ import annotations
 
@@ -84,10 +84,20 @@ def _main(argv: list[str]) -> int:
     plot.add_argument("--out", default="results/plots", help="output folder (PNG files go to OUT/CASE/)")
     plot.add_argument("--conf", default="conf", help="configuration folder")
     _add_import_fit(sub)
+    lab = sub.add_parser("lab", help="virtual laboratory: run a hidden-sample file through the standard tests "
+                         "(SYNTHETIC data)")
+    lab.add_argument("--sample", required=True, help="hidden-sample YAML (README: the virtual laboratory)")
+    lab.add_argument("--out", required=True, help="output folder: OUT/<test>/<case>.parquet")
+    lab.add_argument("--tests", default=None, help="comma-separated tests (default all), e.g. monosine,random")
+    lab.add_argument("--seed", type=int, default=0, help="noise / scatter seed")
+    lab.add_argument("--conf", default=None, help="configuration folder with test/ and variant/ (default the project's)")
+    lab.add_argument("--workers", type=int, default=None, help="parallel processes (default: all cores)")
     _add_discrepancy(sub)
     args = ap.parse_args(argv)
     if args.cmd == "discrepancy":
         return _run_discrepancy(args)
+    if args.cmd == "lab":
+        return _run_lab(args)
     if args.cmd in ("import", "fit"):
         return _run_import_fit(args)
     if args.cmd == "plot":
@@ -111,6 +121,20 @@ def _main(argv: list[str]) -> int:
         print(format_table(design, args.type))
     else:
         print(f"{args.path}: OK ({len(design.parameters)} parameters, hash {design.hash()})")
+    return 0
+
+
+def _run_lab(args) -> int:
+    # the lab's entry point: the only CLI path that reads a hidden sample
+    from .lab import run_lab
+
+    tests = [t.strip() for t in args.tests.split(",") if t.strip()] if args.tests else None
+    if args.tests is not None and not tests:
+        from .lab import LabError
+
+        raise LabError("--tests: expected a comma-separated list of test names")
+    for p in run_lab(args.sample, args.out, tests=tests, seed=args.seed, conf=args.conf, workers=args.workers):
+        print(p)
     return 0
 
 

@@ -1,64 +1,194 @@
 """The virtual laboratory: SYNTHETIC reference "measurements".
 
 No public measurements of this damper type exist, so a hidden physical
-sample (``conf/lab/sample.yaml``: each design case's nominal values with the
-deviations of a real part) is run through every standard test with the
-imperfections of real benches: actuator tracking error (the recorded
-displacement is the real motion, not the target, as in thesis 6.5), force
-transducer and accelerometer bandwidth, sensor noise, and the flow bench's
-isolated conditions (degassed oil, low flow acceleration). Every file says
-``synthetic: true`` in its metadata.
+sample (a YAML like ``conf/lab/sample.yaml``: each design case's nominal
+values with the deviations of a real part, hidden effects switched on, and
+the imperfections of the benches) is run through the standard tests. Every
+file says ``synthetic: true`` in its metadata, with the sample file's hash.
 
-Only this module and the tests read ``conf/lab/``; calibration never does.
-The samples were built from ``conf/lab/nominal.yaml``, a frozen copy of the
-baseline drawings: editing ``conf/design/baseline.yaml`` changes the model,
-not the parts on the lab's shelf.
+The lab is not the fitted model's path (no inverse crime):
+
+- the truth is integrated at ``TRUTH_RTOL`` = 1e-8 (the fits run at
+  simulation.DEFAULT_RTOL = 1e-4);
+- the real part may carry effects the model under test lacks (``effects:``);
+- the benches are not what the fits assume: the transducers have their own
+  filters (e.g. 4th-order Bessel at 1.3 kHz where ``conf/test`` documents a
+  2nd-order Butterworth at 1 kHz), gain and offset errors, noise and the
+  converter's quantisation; the servo-hydraulic actuator has its own
+  closed-loop dynamics (2nd order + delay), and the recorded displacement is
+  the real motion; the oil temperature drifts slowly along a test sequence
+  and scatters between runs (viscosity and bulk modulus follow it), as does
+  the actuator gain.
+
+Only this module, the ``dampertwin lab`` command and the tests read
+``conf/lab/``; calibration never does. The shipped samples were built from
+``conf/lab/nominal.yaml``, a frozen copy of the baseline drawings: editing
+``conf/design/baseline.yaml`` changes the model, not the parts on the shelf.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
 import zlib
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
+from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy import signal
 
 from . import __version__
-from .design import Design
+from .design import ConfigTextError, Design, DesignError, yaml_load_file
 from .design import load as load_design
-from .design import ConfigTextError, yaml_load_file
 from .errors import UserError
 from .excitation import Excitation
 from .io import write_frame
 from .protocols import Run, build_runs, load_all
-from .sensors import sensor_lowpass
+from .sensors import FILTERS, quantise, transducer
 from .simulation import simulate
 from .variants import TOP_MOUNTS, VALVE_DESIGNS, Variant, load_variants
 
-LAB_VERSION = "dampertwin-lab 1"
-SAMPLE_KEYS = ("generator", "seed_offset", "factors", "values", "effects", "benches")
+LAB_VERSION = "dampertwin-lab 2"
+TRUTH_RTOL = 1e-8        # the truth's integration tolerance (the fits: 1e-4)
+REST_S = 20.0            # [s] pause between two runs of a test sequence (temperature drift clock)
+APPROACH2_TESTS = ("training", "verification", "monosine16")  # recorded on the baseline when declared
+
+REQUIRED_KEYS = ("factors", "values", "effects", "benches")
+OPTIONAL_KEYS = ("generator", "seed_offset", "nominal", "description")
+BENCH_KEYS = {
+    "actuator": {"gain", "delay", "natural_frequency", "damping"},
+    "noise": None,           # channel -> one-sigma white noise [SI]
+    "bandwidth": None,       # channel -> 2nd-order Butterworth corner [Hz] (lab-1 shorthand)
+    "sensors": None,         # channel -> {filter, order, corner, gain, offset, resolution}
+    "temperature": {"start", "start_scatter", "drift", "scatter", "viscosity_per_K", "modulus_per_K"},
+    "scatter": {"actuator_gain"},
+}
+SENSOR_KEYS = {"filter", "order", "corner", "gain", "offset", "resolution"}
+CHANNELS = ("displacement [m]", "force [N]", "rod acceleration [m/s^2]", "flow [m^3/s]", "dp [Pa]")
+TEMPERATURE_DEFAULTS = {"start": 0.0, "start_scatter": 0.0, "drift": 0.0, "scatter": 0.0,
+                        "viscosity_per_K": -0.03, "modulus_per_K": -0.005}
 
 
 class LabError(UserError):
     """A lab description (hidden sample) is invalid, or a lab run failed."""
 
 
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
 def load_sample(path: str | Path) -> dict:
-    """Read and check the hidden-sample description."""
+    """Read and check a hidden-sample description (keys and value kinds;
+    the design keys are checked against the nominal design by
+    :func:`check_sample`). Raises LabError naming the file and the key."""
     path = Path(path)
+    if not path.is_file():
+        raise LabError(f"{path}: sample file not found")
     try:
         doc = yaml_load_file(path)
     except ConfigTextError as e:
         raise LabError(str(e)) from None
-    if not isinstance(doc, dict) or set(doc) != set(SAMPLE_KEYS):
-        raise LabError(f"{path}: expected exactly the keys {', '.join(SAMPLE_KEYS)}")
-    b = doc["benches"]
-    for k in ("actuator", "noise", "bandwidth"):
-        if k not in b:
-            raise LabError(f"{path}: benches.{k} missing")
+    if not isinstance(doc, dict):
+        raise LabError(f"{path}: expected a mapping with the keys {', '.join(REQUIRED_KEYS)}")
+    bad = []
+    for k in doc:
+        if k not in REQUIRED_KEYS + OPTIONAL_KEYS:
+            bad.append(f"{k}: unknown key; expected {', '.join(REQUIRED_KEYS + OPTIONAL_KEYS)}")
+    for k in REQUIRED_KEYS:
+        if k not in doc:
+            bad.append(f"{k}: missing")
+        elif not isinstance(doc[k], dict):
+            bad.append(f"{k}: expected a mapping")
+    if bad:
+        raise LabError(f"{path}: " + "; ".join(bad))
+    if doc.get("generator", LAB_VERSION) not in ("dampertwin-lab 1", LAB_VERSION):
+        bad.append(f"generator: {doc['generator']!r}; expected {LAB_VERSION!r}")
+    if not isinstance(doc.get("seed_offset", 0), int) or isinstance(doc.get("seed_offset", 0), bool):
+        bad.append(f"seed_offset: {doc['seed_offset']!r}; expected an integer")
+    if "nominal" in doc and not isinstance(doc["nominal"], str):
+        bad.append("nominal: expected a path (relative to the sample file) of a design YAML")
+    for k, f in doc["factors"].items():
+        if not (_finite(f) and f > 0):
+            bad.append(f"factors.{k}: {f!r}; expected a positive finite factor")
+    for k, v in doc["values"].items():
+        if not _finite(v):
+            bad.append(f"values.{k}: {v!r}; expected a finite number (SI)")
+    for k, v in doc["effects"].items():
+        if not isinstance(v, bool):
+            bad.append(f"effects.{k}: {v!r}; expected true or false")
+    bad += _check_benches(doc["benches"])
+    if bad:
+        raise LabError(f"{path}: " + "; ".join(bad))
+    doc.setdefault("seed_offset", 0)
+    doc["_path"] = str(path)
+    doc["_hash"] = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
     return doc
+
+
+def _check_benches(b: dict) -> list[str]:
+    bad = []
+    for k, v in b.items():
+        if k not in BENCH_KEYS:
+            bad.append(f"benches.{k}: unknown key; expected {', '.join(BENCH_KEYS)}")
+        elif not isinstance(v, dict):
+            bad.append(f"benches.{k}: expected a mapping")
+        elif BENCH_KEYS[k] is not None:
+            bad += [f"benches.{k}.{q}: unknown key; expected {', '.join(sorted(BENCH_KEYS[k]))}"
+                    for q in v if q not in BENCH_KEYS[k]]
+            bad += [f"benches.{k}.{q}: {x!r}; expected a finite number" for q, x in v.items() if not _finite(x)]
+    if bad:
+        return bad
+    for k in ("actuator", "noise"):
+        if k not in b:
+            bad.append(f"benches.{k}: missing")
+    a = b.get("actuator", {})
+    for q in ("gain", "delay"):
+        if q not in a:
+            bad.append(f"benches.actuator.{q}: missing")
+    if a.get("gain", 1.0) <= 0 or a.get("delay", 0.0) < 0:
+        bad.append("benches.actuator: gain must be > 0 and delay >= 0")
+    if ("natural_frequency" in a) != ("damping" in a):
+        bad.append("benches.actuator: natural_frequency [Hz] and damping [-] go together")
+    if a.get("natural_frequency", 1.0) <= 0 or a.get("damping", 1.0) <= 0:
+        bad.append("benches.actuator: natural_frequency and damping must be > 0")
+    for sect in ("noise", "bandwidth"):
+        for ch, v in b.get(sect, {}).items():
+            if ch not in CHANNELS:
+                bad.append(f"benches.{sect}.{ch}: unknown channel; expected {', '.join(CHANNELS)}")
+            elif not (_finite(v) and v >= (0 if sect == "noise" else 1e-300)):
+                bad.append(f"benches.{sect}.{ch}: {v!r}; expected a {'non-negative' if sect == 'noise' else 'positive'} number")
+    for ch, spec in b.get("sensors", {}).items():
+        where = f"benches.sensors.{ch}"
+        if ch not in CHANNELS:
+            bad.append(f"{where}: unknown channel; expected {', '.join(CHANNELS)}")
+            continue
+        if not isinstance(spec, dict):
+            bad.append(f"{where}: expected a mapping of {', '.join(sorted(SENSOR_KEYS))}")
+            continue
+        bad += [f"{where}.{q}: unknown key; expected {', '.join(sorted(SENSOR_KEYS))}" for q in spec if q not in SENSOR_KEYS]
+        if spec.get("filter", "none") not in FILTERS:
+            bad.append(f"{where}.filter: {spec['filter']!r}; expected one of {', '.join(FILTERS)}")
+        if spec.get("filter", "none") != "none":
+            if not (_finite(spec.get("corner")) and spec["corner"] > 0):
+                bad.append(f"{where}.corner: expected a positive corner frequency [Hz]")
+            o = spec.get("order", 2)
+            if not (isinstance(o, int) and not isinstance(o, bool) and 1 <= o <= 8):
+                bad.append(f"{where}.order: {o!r}; expected an integer 1..8")
+        for q in ("gain", "offset", "resolution"):
+            if q in spec and not _finite(spec[q]):
+                bad.append(f"{where}.{q}: {spec[q]!r}; expected a finite number")
+        if spec.get("gain", 1.0) <= 0 or spec.get("resolution", 0.0) < 0:
+            bad.append(f"{where}: gain must be > 0 and resolution >= 0")
+    t = b.get("temperature", {})
+    if any(t.get(q, 0.0) < 0 for q in ("start_scatter", "scatter")):
+        bad.append("benches.temperature: start_scatter and scatter are one-sigma values >= 0")
+    if b.get("scatter", {}).get("actuator_gain", 0.0) < 0:
+        bad.append("benches.scatter.actuator_gain: one-sigma relative value >= 0")
+    return bad
 
 
 def sample_design(nominal: Design, sample: dict) -> Design:
@@ -69,34 +199,85 @@ def sample_design(nominal: Design, sample: dict) -> Design:
     return nominal.with_overrides(ov)
 
 
+def check_sample(sample: dict, nominal: Design) -> None:
+    """Every key of the sample names a design key, every effect a known
+    switch, and the real part is a valid design (LabError naming the file)."""
+    where = sample.get("_path", "<sample>")
+    bad = []
+    for k in sample["effects"]:
+        if k not in nominal.effects:
+            bad.append(f"effects.{k}: unknown effect; expected one of {', '.join(sorted(nominal.effects))}")
+    for sect in ("factors", "values"):
+        for k in sample[sect]:
+            try:
+                v = nominal[k]
+            except (KeyError, ValueError, TypeError):
+                bad.append(f"{sect}.{k}: unknown design key")
+                continue
+            if not _finite(v):
+                bad.append(f"{sect}.{k}: not a scalar design value")
+    if bad:
+        raise LabError(f"{where}: " + "; ".join(bad))
+    try:
+        sample_design(nominal, sample)
+    except (DesignError, KeyError, ValueError) as e:
+        raise LabError(f"{where}: the real part is not a valid design: {e}") from None
+
+
 def _seed(root: int, sample: dict, *names: str) -> int:
     return int(root + sample["seed_offset"] + zlib.crc32("/".join(names).encode())) % (2**32)
 
 
-def _track(ex: Excitation, gain: float, delay: float) -> Excitation:
-    """Actuator tracking error: the real motion lags the target and falls
-    short of it. Recorded displacement = this real motion."""
+def actuate(ex: Excitation, gain: float, delay: float, natural_frequency: float | None = None,
+            damping: float | None = None) -> Excitation:
+    """The motion (or flow) a servo-hydraulic actuator really produces for
+    the target ``ex``: delayed by ``delay`` [s], scaled by ``gain`` and, when
+    given, filtered by its closed position loop, a 2nd-order system
+    x'' + 2 zeta w x' + w^2 x = w^2 u (w = 2 pi natural_frequency), started
+    at rest. The recorded displacement is this real motion (thesis 6.5)."""
     t = ex.t0 + ex.dt * np.arange(len(ex.value))
-    v = gain * np.interp(t - delay, t, ex.value, left=ex.value[0])
-    r = gain * np.interp(t - delay, t, ex.rate, left=0.0)
-    return replace(ex, value=v, rate=r)
+    u = gain * np.interp(t - delay, t, ex.value, left=ex.value[0])
+    if natural_frequency is None:
+        r = gain * np.interp(t - delay, t, ex.rate, left=0.0)
+        return replace(ex, value=u, rate=r)
+    w = 2.0 * math.pi * natural_frequency
+    sys = signal.StateSpace([[0.0, 1.0], [-w * w, -2.0 * damping * w]], [[0.0], [w * w]], np.eye(2), np.zeros((2, 1)))
+    _, y, _ = signal.lsim(sys, u, t - t[0], X0=[u[0], 0.0], interp=True)
+    return replace(ex, value=np.ascontiguousarray(y[:, 0]), rate=np.ascontiguousarray(y[:, 1]))
 
 
-def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, bench: dict | None = None) -> pd.DataFrame:
-    """Measure one run on the hidden sample behind ``design``."""
+def _sensor_specs(benches: dict) -> dict:
+    """Channel -> real transducer description (lab-1 ``bandwidth`` shorthand:
+    2nd-order Butterworth, no gain / offset error)."""
+    specs = {ch: {"filter": "butter", "order": 2, "corner": fc} for ch, fc in benches.get("bandwidth", {}).items()}
+    specs.update(benches.get("sensors", {}))
+    return specs
+
+
+def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, bench: dict | None = None,
+           oil_dT: float = 0.0, gain_scatter: float = 1.0) -> pd.DataFrame:
+    """Measure one run on the hidden sample behind ``design`` with the oil
+    ``oil_dT`` [K] warmer than the design's and the actuator gain scattered."""
     b = sample["benches"]
-    real = _track(run.excitation, b["actuator"]["gain"], b["actuator"]["delay"])
-    r = simulate(sample_design(design, sample), real, run.configuration, current=run.current,
-                 bench_valve=run.bench_valve, rate=run.rate, bench=bench)
+    a = b["actuator"]
+    real = actuate(run.excitation, a["gain"] * gain_scatter, a["delay"], a.get("natural_frequency"), a.get("damping"))
+    part = sample_design(design, sample)
+    if oil_dT:
+        tc = {**TEMPERATURE_DEFAULTS, **b.get("temperature", {})}
+        part = part.with_overrides({"oil.nu": part["oil.nu"] * math.exp(tc["viscosity_per_K"] * oil_dT),
+                                    "oil.K_oil": part["oil.K_oil"] * math.exp(tc["modulus_per_K"] * oil_dT)})
+    r = simulate(part, real, run.configuration, current=run.current, bench_valve=run.bench_valve,
+                 rate=run.rate, bench=bench, rtol=TRUTH_RTOL)
     if not r.ok:
         raise LabError(f"lab simulation of {run.test}/{run.name} failed: {r.stats.message}")
     fs = run.rate
-    noise, bw = b["noise"], b["bandwidth"]
+    noise, specs = b["noise"], _sensor_specs(b)
 
     def meas(name: str, x: np.ndarray) -> np.ndarray:
-        if name in bw:
-            x = sensor_lowpass(x, bw[name], fs)
-        return x + noise.get(name, 0.0) * rng.standard_normal(len(x))
+        s = specs.get(name, {})
+        y = transducer(x, fs, **{k: v for k, v in s.items() if k != "resolution"})
+        y = y + noise.get(name, 0.0) * rng.standard_normal(len(y))
+        return quantise(y, s.get("resolution", 0.0))
 
     cols = {"time [s]": r.time}
     if run.configuration == "valve":
@@ -117,60 +298,141 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
     return df
 
 
-def _write(out: Path, protocol: str, case: str, frames: list[pd.DataFrame], design: Design, seed: int,
-           extra: dict | None = None) -> Path:
-    meta = {"synthetic": True, "generator": LAB_VERSION, "dampertwin": __version__, "seed": seed,
-            "design_hash": design.hash(), "protocol": protocol, "case": case,
-            "note": "SYNTHETIC measurement from the dampertwin virtual laboratory (hidden sample)", **(extra or {})}
-    return write_frame(out / protocol / f"{case}.parquet", pd.concat(frames, ignore_index=True), meta)
-
-
-def plan(conf: Path) -> list[tuple[str, str]]:
-    """(protocol, case) of every file the lab writes."""
+def plan(conf: Path, protocols: dict | None = None) -> list[tuple[str, str]]:
+    """(test, case) of every file the lab writes: the standard tests of
+    approach 1 and, when ``conf/test`` declares them, the approach-2 tests
+    (all their currents in one file, case ``baseline``)."""
     variants = load_variants(conf / "variant")
+    protocols = load_all(conf / "test") if protocols is None else protocols
     items = [("flowbench", v) for v in VALVE_DESIGNS] + [("compliance", "baseline")]
     items += [("topmount", t) for t in TOP_MOUNTS] + [("curving", "baseline")]
     items += [("monosine", v.case) for v in variants] + [("random", v.case) for v in variants]
+    items += [(t, "baseline") for t in APPROACH2_TESTS if t in protocols]
     return items
 
 
-def generate(conf: str | Path, out: str | Path, seed: int, only: list[tuple[str, str]] | None = None,
-             progress: bool = True) -> list[Path]:
-    """Run the hidden sample through every protocol and write data/measured."""
+def _sequence_temperatures(runs: list[Run], tc: dict, rng: np.random.Generator) -> list[float]:
+    """Oil temperature rise [K] of each run of a test sequence: a start offset
+    (another day, another oil state), a slow drift with test time (``drift``
+    K/min, runs separated by REST_S) and a run-to-run scatter."""
+    t0 = tc["start"] + tc["start_scatter"] * rng.standard_normal()
+    out, clock = [], 0.0
+    for r in runs:
+        out.append(float(t0 + tc["drift"] * clock / 60.0 + tc["scatter"] * rng.standard_normal()))
+        clock += r.excitation.t_end - r.excitation.t0 + REST_S
+    return out
+
+
+def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case: str, seed: int,
+                 protocols: dict | None = None, variants: dict | None = None) -> tuple[pd.DataFrame, dict]:
+    """One (test, case) of the plan on the hidden sample: the frame and its
+    metadata (without writing)."""
+    protocols = load_all(conf / "test") if protocols is None else protocols
+    variants = {v.case: v for v in load_variants(conf / "variant")} if variants is None else variants
+    s = _seed(seed, sample, protocol, case)
+    rng = np.random.default_rng(s)
+    pc = protocols[protocol]
+    runs = build_runs(pc, seed)
+    bench = None
+    extra = {}
+    if protocol == "flowbench":
+        valve, vcase = VALVE_DESIGNS[case]
+        d = variants[vcase].apply(nominal) if vcase else nominal
+        runs = [next(r for r in runs if r.bench_valve == valve)]
+        bench = {"bench_volume": pc["volume"], "bench_back_pressure": pc["back_pressure"]}
+        extra = {"valve": valve, "valve_design": case}
+    elif protocol == "topmount":
+        vcase = TOP_MOUNTS[case]
+        d = variants[vcase].apply(nominal) if vcase else nominal
+    elif protocol in ("compliance", "curving") or protocol in APPROACH2_TESTS:
+        d = nominal
+    else:
+        v: Variant = variants[case]
+        d = v.apply(nominal)
+        runs = [r for r in runs if math.isclose(r.current, v.current)]
+        if not runs:
+            raise LabError(f"protocol {protocol} has no run at {v.current} A for case {case}")
+    b = sample["benches"]
+    tc = {**TEMPERATURE_DEFAULTS, **b.get("temperature", {})}
+    temps = _sequence_temperatures(runs, tc, rng) if protocol != "topmount" else [0.0] * len(runs)
+    sg = b.get("scatter", {}).get("actuator_gain", 0.0)
+    gains = [1.0 + sg * rng.standard_normal() for _ in runs]
+    frames = [record(r, d, sample, rng, bench, oil_dT=dT, gain_scatter=g) for r, dT, g in zip(runs, temps, gains)]
+    meta = {"synthetic": True, "generator": LAB_VERSION, "dampertwin": __version__, "seed": s,
+            "design_hash": d.hash(), "protocol": protocol, "case": case,
+            "sample": Path(sample.get("_path", "sample.yaml")).name, "sample_hash": sample.get("_hash", ""),
+            "truth_rtol": TRUTH_RTOL,
+            "oil_temperature_K": {r.name: round(d["oil.T"] + dT, 3) for r, dT in zip(runs, temps)},
+            "note": "SYNTHETIC measurement from the dampertwin virtual laboratory (hidden sample)", **extra}
+    return pd.concat(frames, ignore_index=True), meta
+
+
+def _measure_and_write(conf: str, sample: dict, nominal_path: str, protocol: str, case: str, seed: int,
+                       out: str) -> str:
+    nominal = load_design(nominal_path)
+    df, meta = measure_case(Path(conf), sample, nominal, protocol, case, seed)
+    return str(write_frame(Path(out) / protocol / f"{case}.parquet", df, meta))
+
+
+def _nominal_path(conf: Path, sample: dict) -> Path:
+    if "nominal" in sample:
+        return (Path(sample["_path"]).parent / sample["nominal"]).resolve()
+    return conf / "lab" / "nominal.yaml"
+
+
+def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None, seed: int = 0,
+            progress: bool = True, conf: str | Path | None = None, only: list[tuple[str, str]] | None = None,
+            workers: int | None = None) -> list[Path]:
+    """Run a hidden-sample file through the standard tests (all, or the
+    ``tests`` named) and write ``out/<test>/<case>.parquet``, labelled
+    synthetic. ``conf`` is the configuration folder (protocols, variants;
+    default the project's); ``workers`` processes run the cases in parallel
+    (default: the machine's cores). Same sample, seed and conf: same bytes."""
     from tqdm import tqdm
 
-    conf, out = Path(conf), Path(out)
-    sample = load_sample(conf / "lab" / "sample.yaml")
-    baseline = load_design(conf / "lab" / "nominal.yaml")  # the drawings the samples were built from
-    variants = {v.case: v for v in load_variants(conf / "variant")}
-    protocols = load_all(conf / "test")
-    items = plan(conf) if only is None else only
-    written = []
-    for protocol, case in tqdm(items, desc="lab", disable=not progress):
-        s = _seed(seed, sample, protocol, case)
-        rng = np.random.default_rng(s)
-        pc = protocols[protocol]
-        runs = build_runs(pc, seed)
-        if protocol == "flowbench":
-            valve, vcase = VALVE_DESIGNS[case]
-            d = variants[vcase].apply(baseline) if vcase else baseline
-            run = next(r for r in runs if r.bench_valve == valve)
-            bench = {"bench_volume": pc["volume"], "bench_back_pressure": pc["back_pressure"]}
-            frames = [record(run, d, sample, rng, bench)]
-            written.append(_write(out, protocol, case, frames, d, s, {"valve": valve, "valve_design": case}))
-            continue
-        if protocol == "topmount":
-            vcase = TOP_MOUNTS[case]
-            d = variants[vcase].apply(baseline) if vcase else baseline
-        elif protocol in ("compliance", "curving"):
-            d = baseline
-        else:
-            v: Variant = variants[case]
-            d = v.apply(baseline)
-            runs = [r for r in runs if math.isclose(r.current, v.current)]
-            if not runs:
-                raise LabError(f"protocol {protocol} has no run at {v.current} A for case {case}")
-        frames = [record(r, d, sample, rng) for r in runs]
-        written.append(_write(out, protocol, case, frames, d, s))
-    return written
+    from .config import repo_root
 
+    conf = Path(conf) if conf is not None else repo_root(Path(__file__).parent) / "conf"
+    sample_doc = load_sample(sample)
+    nominal_path = _nominal_path(conf, sample_doc)
+    try:
+        nominal = load_design(nominal_path)
+    except (DesignError, FileNotFoundError) as e:
+        raise LabError(f"{sample}: nominal design {nominal_path}: {e}") from None
+    check_sample(sample_doc, nominal)
+    protocols = load_all(conf / "test")
+    items = plan(conf, protocols) if only is None else list(only)
+    if tests is not None:
+        known = sorted({t for t, _ in items})
+        unknown = [t for t in tests if t not in known]
+        if unknown:
+            raise LabError(f"--tests: unknown test(s) {', '.join(unknown)}; expected some of {', '.join(known)}")
+        items = [it for it in items if it[0] in tests]
+    out = Path(out)
+    # longest first (module random tests), so the workers finish together
+    order = sorted(range(len(items)), key=lambda i: items[i][0] not in ("random", "verification", "training"))
+    workers = min(len(items), workers or os.cpu_count() or 1)
+    args = [(str(conf), sample_doc, str(nominal_path), *items[i], seed, str(out)) for i in order]
+    paths: dict[int, str] = {}
+    bar = tqdm(total=len(items), desc="lab", disable=not progress)
+    if workers <= 1:
+        for i, a in zip(order, args):
+            paths[i] = _measure_and_write(*a)
+            bar.update()
+    else:
+        with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+            futs = {pool.submit(_measure_and_write, *a): i for i, a in zip(order, args)}
+            for f in as_completed(futs):
+                paths[futs[f]] = f.result()
+                bar.update()
+    bar.close()
+    return [Path(paths[i]) for i in range(len(items))]
+
+
+def generate(conf: str | Path, out: str | Path, seed: int, only: list[tuple[str, str]] | None = None,
+             progress: bool = True, sample: str | Path | None = None, workers: int | None = None) -> list[Path]:
+    """The DVC lab stage: ``conf/lab/sample.yaml`` (or ``sample``) through
+    every test of the plan into ``out`` (data/measured)."""
+    conf = Path(conf)
+    return run_lab(sample or conf / "lab" / "sample.yaml", out, seed=seed, progress=progress, conf=conf,
+                   only=only, workers=workers)

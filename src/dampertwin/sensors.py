@@ -20,3 +20,32 @@ def sensor_lowpass(x: np.ndarray, fc: float | None, fs: float) -> np.ndarray:
     sos = signal.butter(ORDER, fc, fs=fs, output="sos")
     zi = signal.sosfilt_zi(sos) * x[0]
     return signal.sosfilt(sos, x, zi=zi)[0]
+
+
+FILTERS = ("butter", "bessel", "none")
+
+
+def transducer(x: np.ndarray, fs: float, *, filter: str = "none", order: int = 2, corner: float | None = None,
+               gain: float = 1.0, offset: float = 0.0) -> np.ndarray:
+    """A real transducer's chain: low-pass dynamics of its own kind
+    (``butter`` Butterworth, ``bessel`` Bessel with -3 dB at ``corner`` [Hz],
+    ``none``), then gain and offset errors. Causal, started at rest on the
+    first sample. Noise and the converter's quantisation are added by the
+    caller (they depend on its random stream and resolution)."""
+    if filter not in FILTERS:
+        raise ValueError(f"unknown filter {filter!r}; expected one of {', '.join(FILTERS)}")
+    if filter != "none" and corner is not None and corner < 0.45 * fs:
+        if filter == "butter":
+            sos = signal.butter(order, corner, fs=fs, output="sos")
+        else:
+            sos = signal.bessel(order, corner, norm="mag", fs=fs, output="sos")
+        zi = signal.sosfilt_zi(sos) * x[0]
+        x = signal.sosfilt(sos, x, zi=zi)[0]
+    return gain * x + offset
+
+
+def quantise(x: np.ndarray, resolution: float) -> np.ndarray:
+    """Analogue-to-digital conversion with step ``resolution`` (0: none)."""
+    if resolution <= 0:
+        return x
+    return np.round(x / resolution) * resolution

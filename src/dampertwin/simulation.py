@@ -98,11 +98,12 @@ _SPARSITY_CACHE: dict = {}
 
 def _problem(configuration, cfg, P, ex, aux, t_out):
     """Compiled RHS, state scales and probed sparsity of a configuration.
-    The probe is cached per configuration and pattern of zero parameters
-    (the only way parameter values can remove a dependency)."""
+    The probe is cached per configuration, pattern of zero parameters (a
+    zero removes a dependency) and value of the selector parameters (the
+    flow bench's valve selects which valve's equations, hence states, run)."""
     rhs = RHS[configuration]
     rows = np.asarray(P)[:8]
-    key = (configuration, np.packbits(rows != 0.0).tobytes(), rows.shape)
+    key = (configuration, np.packbits(rows != 0.0).tobytes(), rows.shape, rows[:, L.P.BENCH_VALVE].tobytes())
     sp = _SPARSITY_CACHE.get(key)
     if sp is None:
         sp = sparsity(rhs, cfg, rows, ex, aux, (float(t_out[0]), float(t_out[-1])))
