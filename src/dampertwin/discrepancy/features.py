@@ -54,6 +54,7 @@ class Unit:
     frequency: float | None = None
     _bins: tuple | None = None                      # (cycle index, bin index, valid mask) for sine units
     _floor: dict | None = None                      # measured PSD floor per channel
+    _slope: dict | None = None                      # bin mean of d(signal)/dt per channel (sine units)
 
     @property
     def key(self) -> str:
@@ -199,7 +200,14 @@ def prepare(u: Unit, cfg: dict) -> Unit:
         nb = int(cfg["phase_bins"])
         u._bins = _phase_bins(u, nb, int(cfg["transient_cycles"]))
         u.frequency = u._bins[0]
-        u.per_cycle = _sine_matrix(u, _compare(u, u.measured, cfg), nb)
+        cmp_ = _compare(u, u.measured, cfg)
+        u.per_cycle = _sine_matrix(u, cmp_, nb)
+        dt = float(np.mean(np.diff(u.t)))
+        slopes = _sine_matrix(u, {ch: np.gradient(cmp_[ch], dt) for ch in u.channels}, nb).mean(axis=0)
+        u._slope, k = {}, 0
+        for ch in u.channels:
+            u._slope[ch] = slopes[k:k + nb]
+            k += nb * (2 if ch == ACC else 1)
         u.labels = _sine_labels(u, nb)
         if u.per_cycle.shape[0] < 2:
             raise ValueError(f"{u.key}: fewer than 2 steady cycles; cannot estimate the cycle-to-cycle scatter")
@@ -252,6 +260,10 @@ def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
             sig[m] = np.sqrt(scatter ** 2 + (float(b["floor"]) * rms) ** 2)
             gain = float(b["gain"]) * mean[m]
             off = np.full(len(idx), float(b["offset"]) * rms if name != "acceleration rms" else 0.0)
+            # transducer delay other than documented (filter kind / order / corner): bin means shift
+            # along the signal's slope
+            if name != "acceleration rms" and u._slope is not None:
+                C[np.ix_(idx, idx)] += np.outer(*(2 * [float(cfg.get("delay_sigma", 0.0)) * u._slope[ch]]))
         C[np.ix_(idx, idx)] += np.outer(gain, gain) + np.outer(off, off)
     sig = np.maximum(sig, 1e-12)
     C += np.diag(sig ** 2)
