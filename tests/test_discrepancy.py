@@ -51,7 +51,15 @@ def control(tmp_path_factory) -> Path:
 def leak(tmp_path_factory) -> Path:
     """Piston leakage at a large (worn-band) gap, otherwise nominal."""
     return _lab(tmp_path_factory.mktemp("lab"), "leak", 12, effects={"piston_leakage": True},
-                values={"constants.leak_gap": 6e-5})
+                values={_leak_key(): 6e-5})
+
+
+def _leak_key() -> str:
+    """The leakage gap's key: ``piston_leakage.gap`` with the effect-parameter API, else the constant."""
+    d = load(ROOT / "conf" / "lab" / "nominal.yaml")
+    if hasattr(d, "effect_parameters") and any(e.key == "piston_leakage.gap" for e in d.effect_parameters()):
+        return "piston_leakage.gap"
+    return "constants.leak_gap"
 
 
 def _run(measured: Path, out: Path, seed: int = 0) -> dict:

@@ -553,7 +553,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     res["stats"] = stats
     for n, st in stats.items():
         log.append(f"{n}: held-out chi2 gain {st['gain']:.1f} after a penalty of {st['penalty']:.1f} "
-                   f"({st['k']} parameter(s) x ln {n_eff} cycles), closes {100 * st['closed']:.0f} % of the "
+                   f"({st['k']} parameter(s) x ln {n_eff} cycles), closes {100 * min(st['closed'], 1.0):.0f} % of the "
                    f"held-out gap left by the {'calibration refit' if ref is cal else 'design under test'}, wins {100 * st['share']:.0f} % of {B} cycle bootstraps")
     viable = [n for n in names if stats[n]["gain"] > 0 and stats[n]["closed"] >= float(dcfg["min_closed"])]
     cand_rows = []
