@@ -25,6 +25,7 @@ import numpy as np
 
 from dampertwin import Excitation, simulate, simulate_batch
 from dampertwin.design import load
+from dampertwin.model.params import EFFECTS_LIBRARY
 from dampertwin.reference import simulate_reference
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,7 +57,8 @@ def main():
     a = ap.parse_args()
     d = load(ROOT / "conf/design/baseline.yaml")
     all_on = {k: True for k in d.effects}
-    d = d.with_overrides({f"effects.{k}": True for k in d.effects if k != "piston_leakage"})
+    # the thesis' own effects on; the candidate effects of the library (README "Effect library") off
+    d = d.with_overrides({f"effects.{k}": True for k in d.effects if EFFECTS_LIBRARY[k].thesis})
     sim_s = 1.0
     ex = Excitation.sine(0.005, 13.0, sim_s)
     simulate(d, Excitation.sine(0.005, 13.0, 0.05), "module")  # compile / load cache

@@ -174,7 +174,7 @@ EFFECT_PROBES = {
     "slot_restriction": {"piston_rebound.A_slot": 1e-5, "base_compression.A_slot": 1e-5},
     "rod_friction": {"rod_friction.F_c": 150.0, "rod_friction.F_s": 200.0},
     "top_mount_dynamics": {"top_mount.k1": 8e6, "top_mount.c0": 2000.0},
-    "piston_leakage": {"constants.leak_gap": 6e-5},
+    "piston_leakage": {"piston_leakage.gap": 6e-5},
 }
 
 

@@ -232,6 +232,6 @@ def test_piston_leakage_conductance_is_laminar_annulus(p_base):
     """Poiseuille flow in a narrow annular gap: Q = pi D h^3 dp / (12 mu L)."""
     d = load(BASELINE)
     mu = d["oil.rho_oil"] * d["oil.nu"]
-    G = math.pi * d["geometry.D_PT"] * d["constants.leak_gap"] ** 3 / (12 * mu * d["constants.leak_length"])
+    G = math.pi * d["geometry.D_PT"] * d["piston_leakage.gap"] ** 3 / (12 * mu * d["piston_leakage.length"])
     assert p_base[L.P.G_LEAK] == pytest.approx(G, rel=1e-12)
     assert p_base[L.P.E_LEAK] == 0.0  # the thesis model has no leakage: off in the baseline

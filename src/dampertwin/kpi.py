@@ -358,3 +358,38 @@ def to_markdown(df: pd.DataFrame, digits: int = 1) -> str:
     sep = "|" + "|".join("---" for _ in df.columns) + "|"
     body = ["| " + " | ".join(fmt(v) for v in row) + " |" for row in df.itertuples(index=False)]
     return "\n".join([head, sep, *body]) + "\n"
+
+
+# ------------------------------------------------------------ thesis tables 7.1 / 7.2 (approach 2)
+def table_7_1(rows: list[dict]) -> pd.DataFrame:
+    """Thesis table 7.1 layout: no, current, rod acceleration peak at the
+    rebound / compression stroke [g], simulated / measured and Difference
+    [%] = (measured - simulated) / |measured| x 100 (the sign convention the
+    thesis' rows follow, checked row by row: 1.6 A compression -9.1 / -9.9 g
+    -> negative). Row keys ``sim_<half>`` / ``meas_<half>``."""
+    out = []
+    for r in rows:
+        row = {"no.": r["no"], "Active valve current [A]": r["current"]}
+        for h in HALVES:
+            s, m = r[f"sim_{h}"], r[f"meas_{h}"]
+            row[f"{h.capitalize()} simulated [g]"] = s
+            row[f"{h.capitalize()} measured [g]"] = m
+            row[f"{h.capitalize()} difference [%]"] = (m - s) / abs(m) * 100.0
+        out.append(row)
+    return pd.DataFrame(out)
+
+
+def table_7_2(rows: list[dict]) -> pd.DataFrame:
+    """Thesis table 7.2 layout: PSD of rod acceleration at 200 / 300 Hz [dB
+    re 1 g^2/Hz], simulated / measured and Difference [dB] =
+    |simulated - measured| (as the thesis' rows and table 6.6 print it)."""
+    out = []
+    for r in rows:
+        row = {"no.": r["no"], "Active valve current [A]": r["current"]}
+        for f in ("200", "300"):
+            s, m = r[f"sim_{f}"], r[f"meas_{f}"]
+            row[f"{f} Hz simulated [dB]"] = s
+            row[f"{f} Hz measured [dB]"] = m
+            row[f"{f} Hz difference [dB]"] = abs(s - m)
+        out.append(row)
+    return pd.DataFrame(out)

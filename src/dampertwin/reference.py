@@ -32,10 +32,10 @@ def _solve(p, ex, aux, configuration, y0, t_out, rtol, atol_scale):
     """Integrate with scipy BDF; returns (outputs[n_t, N_OUT], nfev, status)."""
     from scipy.integrate import solve_ivp
 
-    from .model.damper import RHS
-    from .model.layout import N_OUT
+    from .model.damper import RHS_BY_CFG
+    from .model.layout import CONFIGURATIONS, N_OUT, variant
 
-    evaluate = RHS[str(configuration)]
+    evaluate = RHS_BY_CFG[variant(CONFIGURATIONS[str(configuration)], p)]  # extended when an effect with states is on
     n = len(y0)
     dy = np.empty(n)
     scratch = np.empty(N_OUT)

@@ -12,7 +12,7 @@ from .design import Design
 from .excitation import Excitation
 from .model import layout as L
 from .model.active_valve import pack_map
-from .model.damper import RHS
+from .model.damper import RHS_BY_CFG
 from .model.layout import N_OUT, O, initial_state, state_scales
 from .model.params import pack, parameter_problems
 from .model.sparsity import sparsity
@@ -67,7 +67,7 @@ def _channels(cfg: int, out: np.ndarray) -> dict[str, np.ndarray]:
         return ch
     if cfg == L.CFG_TOPMOUNT:
         return {k: out[:, i] for k, i in _TOPMOUNT_COLUMNS.items()}
-    skip = {O.F_TM, O.A_ROD} if cfg == L.CFG_DAMPER else set()
+    skip = {O.F_TM, O.A_ROD} if L.base_configuration(cfg) == L.CFG_DAMPER else set()
     return {name: out[:, i] for i, (name, _) in enumerate(L.OUTPUTS) if i not in skip}
 
 
@@ -90,7 +90,7 @@ def _setup(design, excitation, configuration, current, effects, bench_valve, ben
     p = pack(design, current=current, effects=effects, bench_valve=bench_valve, **(bench or {}))
     p[L.P.EX_T0] = excitation.t0
     p[L.P.EX_DT] = excitation.dt
-    return cfg, p
+    return L.variant(cfg, p), p  # the extended configuration when an effect with states is on
 
 
 _SPARSITY_CACHE: dict = {}
@@ -101,9 +101,9 @@ def _problem(configuration, cfg, P, ex, aux, t_out):
     The probe is cached per configuration, pattern of zero parameters (a
     zero removes a dependency) and value of the selector parameters (the
     flow bench's valve selects which valve's equations, hence states, run)."""
-    rhs = RHS[configuration]
+    rhs = RHS_BY_CFG[cfg]
     rows = np.asarray(P)[:8]
-    key = (configuration, np.packbits(rows != 0.0).tobytes(), rows.shape, rows[:, L.P.BENCH_VALVE].tobytes())
+    key = (configuration, cfg, np.packbits(rows != 0.0).tobytes(), rows.shape, rows[:, L.P.BENCH_VALVE].tobytes())
     sp = _SPARSITY_CACHE.get(key)
     if sp is None:
         sp = sparsity(rhs, cfg, rows, ex, aux, (float(t_out[0]), float(t_out[-1])))
@@ -160,6 +160,9 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
         raise ValueError("simulate_batch: all designs must share one active-valve map")
     setups = [_setup(d, excitation, configuration, current, effects, bench_valve, bench) for d in designs]
     cfg = setups[0][0]
+    if any(s[0] != cfg for s in setups):
+        raise ValueError("simulate_batch: all designs must switch the effects with states (active_valve_lag, "
+                         "oil_thermal) alike")
     P = np.vstack([s[1] for s in setups])
     problems = [parameter_problems(p, configuration) for p in P]
     invalid = np.array([bool(b) for b in problems])

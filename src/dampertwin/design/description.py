@@ -29,6 +29,7 @@ from .schema import (
     BY_NUMBER,
     CONSTANT_TYPES,
     CONSTANTS,
+    EFFECT_PARAMETERS,
     EFFECTS,
     MAP_COLUMNS,
     ORDERED,
@@ -41,7 +42,9 @@ from .schema import (
 
 PARAM_FIELDS = ("no", "name", "symbol", "group", "description", "type", "value", "unit", "source")
 CONST_FIELDS = ("name", "symbol", "description", "type", "value", "unit", "source")
-TOP_KEYS = ("design", "description", "parameters", "constants", "effects")
+TOP_KEYS = ("design", "description", "parameters", "constants", "effects", "effect_parameters")
+EFFECT_PARAM_FIELDS = ("name", "effect", "symbol", "description", "type", "value", "unit", "source", "typical")
+EFFECT_PARAM_TYPES = ("C", "F")
 
 
 class DesignError(UserError):
@@ -199,6 +202,29 @@ class Constant:
 
 
 @dataclass(frozen=True)
+class EffectParameter:
+    """A parameter of an optional physical effect (design key
+    ``effect_parameters:``), addressed as ``"<effect>.<name>"``. ``typical``
+    is the magnitude a typical real part with this effect has (SI ``unit``);
+    ``bounds`` (lower, upper) is required for type C, optional for F."""
+
+    name: str
+    effect: str
+    symbol: str
+    description: str
+    type: str
+    value: float
+    unit: str
+    source: str
+    typical: float
+    bounds: tuple | None = None
+
+    @property
+    def key(self) -> str:
+        return f"{self.effect}.{self.name}"
+
+
+@dataclass(frozen=True)
 class PQMap:
     """Active-valve characteristic (no. 52): Q [m^3/s] on a current x dp grid.
 
@@ -233,6 +259,13 @@ class Design:
     pq_map: PQMap
     path: Path | None = field(default=None, compare=False)
     map_dirs: tuple = field(default=(), compare=False)  # extra folders the P/Q map may live in
+    effect_params: Mapping[str, EffectParameter] = field(default_factory=lambda: MappingProxyType({}))
+
+    def effect_parameters(self, effect: str | None = None) -> list[EffectParameter]:
+        """The effect parameters (all, or those of one effect), in file order."""
+        if effect is not None and effect not in EFFECTS:
+            raise KeyError(f"unknown effect {effect!r}; expected one of {', '.join(EFFECTS)}")
+        return [e for e in self.effect_params.values() if effect is None or e.effect == effect]
 
     # ---- access -----------------------------------------------------------
     def param(self, key: int | str) -> Parameter:
@@ -252,6 +285,10 @@ class Design:
             return self.constants[key.split(".", 1)[1]].value
         if isinstance(key, str) and key.startswith("effects."):
             return self.effects[key.split(".", 1)[1]]
+        if isinstance(key, str) and key in self.effect_params:
+            return self.effect_params[key].value
+        if isinstance(key, str) and key in EFFECT_PARAMETERS:
+            raise KeyError(f"design {self.name!r} has no effect parameter {key!r} (section effect_parameters)")
         return self.param(key).value
 
     def constant(self, name: str) -> float:
@@ -296,7 +333,15 @@ class Design:
         errors: list[str] = []
         pindex = {p["no"]: p for p in doc["parameters"]}
         cindex = {c["name"]: c for c in doc["constants"]}
+        eindex = {f"{e['effect']}.{e['name']}": e for e in doc.get("effect_parameters", [])}
         for key, val in overrides.items():
+            if isinstance(key, str) and key in EFFECT_PARAMETERS:
+                if key not in eindex:
+                    errors.append(f"{where}: override of effect parameter {key!r}, which the design does not "
+                                  f"declare (section effect_parameters)")
+                else:
+                    eindex[key]["value"] = _plain(val)
+                continue
             if isinstance(key, str) and key.startswith("constants."):
                 cname = key.split(".", 1)[1]
                 if cname not in cindex:
@@ -347,13 +392,16 @@ class Design:
              "value": c.value, "unit": c.unit, "source": c.source}
             for c in self.constants.values()
         ]
-        return {
+        doc = {
             "design": self.name,
             "description": self.description,
             "parameters": params,
             "constants": consts,
             "effects": dict(self.effects),
         }
+        if self.effect_params:
+            doc["effect_parameters"] = [_effect_param_doc(e) for e in self.effect_params.values()]
+        return doc
 
     def dumps(self, rel_to: Path | None = None) -> str:
         return yaml.dump(self._doc(rel_to), Dumper=_Dumper, sort_keys=False, width=100, allow_unicode=True)
@@ -380,11 +428,22 @@ class Design:
             ],
             "c": sorted([c.name, c.type, c.unit, _canon(c.value)] for c in self.constants.values()),
             "e": sorted(self.effects.items()),
+            **({"ep": sorted([e.key, e.type, e.unit, _canon(e.value), _canon(e.bounds)]
+                             for e in self.effect_params.values())} if self.effect_params else {}),
             "m": [_canon(tuple(self.pq_map.currents)), _canon(tuple(self.pq_map.dps)),
                   _canon(tuple(self.pq_map.flow.ravel()))],
         }
         blob = json.dumps(content, sort_keys=True, separators=(",", ":")).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def _effect_param_doc(e: EffectParameter) -> dict:
+    d = {"name": e.name, "effect": e.effect, "symbol": e.symbol, "description": e.description, "type": e.type,
+         "value": e.value, "unit": e.unit, "source": e.source}
+    if e.bounds is not None:
+        d["bounds"] = list(e.bounds)
+    d["typical"] = e.typical
+    return d
 
 
 def _canon(v):
@@ -489,6 +548,7 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
                                        (base_dir, *map_dirs, *_env_map_dirs()))
     constants = _parse_constants(doc.get("constants"), where, errors)
     effects = _parse_effects(doc.get("effects"), where, errors)
+    effect_params = _parse_effect_parameters(doc.get("effect_parameters", []), effects, where, errors)
     _check_physics(params, constants, where, errors)
     if errors:
         raise DesignError(errors)
@@ -501,6 +561,7 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
         pq_map=pq_map,
         path=path,
         map_dirs=tuple(map_dirs),
+        effect_params=MappingProxyType(effect_params),
     )
 
 
@@ -716,6 +777,90 @@ def _parse_effects(eff, where, errors) -> dict[str, bool]:
     return {k: out[k] for k in EFFECTS if k in out}
 
 
+def _parse_effect_parameters(items, effects, where, errors) -> dict[str, EffectParameter]:
+    """The optional ``effect_parameters:`` list: each entry's effect and name
+    declared in schema.EFFECT_PARAMETERS, SI unit, type C (bounds required,
+    value and typical inside) or F (bounds optional), physical range."""
+    out: dict[str, EffectParameter] = {}
+    if not isinstance(items, list):
+        errors.append(f"{where}: 'effect_parameters' must be a list of entries")
+        return out
+    for idx, item in enumerate(items):
+        if not isinstance(item, dict):
+            errors.append(f"{where}: effect_parameters[{idx}]: expected a mapping, got {type(item).__name__}")
+            continue
+        eff, nm = item.get("effect"), item.get("name")
+        key = f"{eff}.{nm}"
+        label = f"{where}: effect parameter {key!r}"
+        if eff not in EFFECTS:
+            errors.append(f"{label}: unknown effect {eff!r}; expected one of {', '.join(EFFECTS)}")
+            continue
+        if key not in EFFECT_PARAMETERS:
+            known = [k.split('.', 1)[1] for k in EFFECT_PARAMETERS if k.startswith(eff + ".")]
+            errors.append(f"{label}: unknown parameter {nm!r} of effect {eff!r}; expected one of {', '.join(known) or '(none)'}")
+            continue
+        if key in out:
+            errors.append(f"{label}: duplicated")
+            continue
+        n_err = len(errors)
+        for k in item:
+            if k not in EFFECT_PARAM_FIELDS + ("bounds",):
+                errors.append(f"{label}: unknown field {k!r}; expected {', '.join(EFFECT_PARAM_FIELDS)}, bounds")
+        for k in EFFECT_PARAM_FIELDS:
+            if k not in item:
+                errors.append(f"{label}: missing field {k!r}")
+        for k in ("symbol", "description", "source"):
+            if k in item and not isinstance(item[k], str):
+                errors.append(f"{label}: field {k!r} must be a string")
+        unit_decl, rng = EFFECT_PARAMETERS[key]
+        ptype = item.get("type")
+        if "type" in item and ptype not in EFFECT_PARAM_TYPES:
+            errors.append(f"{label}: type {ptype!r}; effect parameters are C (calibrated, with bounds) or F (fixed)")
+        if "unit" in item and item["unit"] != unit_decl:
+            errors.append(f"{label}: unit {item['unit']!r}; expected the SI unit {unit_decl!r}")
+        vals = {}
+        for k in ("value", "typical"):
+            v = item.get(k)
+            if k not in item:
+                continue
+            if not _is_num(v) or not math.isfinite(v):
+                errors.append(f"{label}: {k} {v!r} is not a finite number (in {unit_decl})")
+            elif not rng.contains(v):
+                errors.append(f"{label}: {k} {v!r}; expected {rng.describe()} {unit_decl}")
+            else:
+                vals[k] = float(v)
+        bounds = item.get("bounds")
+        if bounds is None:
+            if ptype == "C":
+                errors.append(f"{label}: calibrated (C) effect parameter has no bounds; expected [lower, upper] in {unit_decl}")
+        elif not (isinstance(bounds, list) and len(bounds) == 2 and all(_is_num(b) and math.isfinite(b) for b in bounds)):
+            errors.append(f"{label}: bounds must be [lower, upper] (two finite numbers), got {bounds!r}")
+            bounds = None
+        else:
+            lo, hi = float(bounds[0]), float(bounds[1])
+            bounds = (lo, hi)
+            if not lo < hi:
+                errors.append(f"{label}: bounds lower {lo!r} >= upper {hi!r}")
+            elif not (rng.contains(lo) and rng.contains(hi)):
+                errors.append(f"{label}: bounds [{lo!r}, {hi!r}] must lie inside the physical range {rng.describe()} {unit_decl}")
+            else:
+                for k, v in vals.items():
+                    if not lo <= v <= hi:
+                        errors.append(f"{label}: {k} {v!r} outside bounds [{lo!r}, {hi!r}] {unit_decl}")
+        if len(errors) == n_err:
+            out[key] = EffectParameter(name=nm, effect=eff, symbol=item["symbol"], description=item["description"],
+                                       type=ptype, value=vals["value"], unit=unit_decl, source=item["source"],
+                                       typical=vals["typical"], bounds=bounds)
+    for eff, on in effects.items():
+        if on:
+            missing = [k for k in EFFECT_PARAMETERS if k.startswith(eff + ".") and k not in out
+                       and not any(isinstance(i, dict) and f"{i.get('effect')}.{i.get('name')}" == k for i in items)]
+            if missing:
+                errors.append(f"{where}: effects.{eff} is on but its parameter(s) {', '.join(missing)} are not "
+                              f"declared in effect_parameters")
+    return out
+
+
 _KEY_NO = {f"{sp.group}.{sp.name}": sp.no for sp in PARAMETERS}
 
 
@@ -842,5 +987,5 @@ def write_map(path: str | os.PathLike, pq: PQMap) -> None:
     Path(path).write_text("\n".join(lines) + "\n")
 
 
-__all__ = ["Design", "DesignError", "Parameter", "Constant", "PQMap", "load", "loads", "write_map", "yaml_load",
+__all__ = ["Design", "DesignError", "EffectParameter", "Parameter", "Constant", "PQMap", "load", "loads", "write_map", "yaml_load",
            "yaml_load_file", "read_config_text", "ConfigTextError", "MAX_CONFIG_BYTES"]

@@ -25,6 +25,7 @@ SI_UNITS = frozenset(
     {
         "-", "m", "m^2", "m^3", "kg", "s", "K", "A", "N", "Pa", "rad",
         "1/s", "1/m", "m/s", "m^2/s", "m^3/s", "kg/m^3", "N/m", "N*s/m",
+        "1/K", "J/K", "W/K", "N/A", "m^2/N", "N/Pa",
     }
 )
 
@@ -124,8 +125,6 @@ CONSTANTS: dict[str, str] = {
     "pt_r_o": "m",
     "wall_ratio_third_tube": "-",
     "A_bypass": "m^2",
-    "leak_gap": "m",
-    "leak_length": "m",
     "Cq_bypass": "-",
     "p_transition": "Pa",
     "zeta": "rad",
@@ -159,7 +158,19 @@ EFFECTS: dict[str, str] = {
     "rod_friction": "LuGre rod friction, eq. 4.38-4.41",
     "top_mount_dynamics": "AutoBushFD dynamic branches, eq. 4.32-4.36 (off: static curve only)",
     "piston_leakage": "laminar leakage past the piston band (left out by the thesis, 4.4)",
+    "active_valve_lag": "first-order lag of the active valve's flow behind its static P/Q map (thesis 7.4)",
+    "aeration": "free air entrained in the compression chamber, Boyle's law (thesis 7.4)",
+    "valve_friction_current": "current-dependent Coulomb friction of the active valve's spool (thesis 7.4)",
+    "oil_thermal": "oil temperature rising with dissipated power; viscosity and bulk modulus follow it",
+    "rod_friction_asymmetric": "direction-dependent rod seal friction (rebound vs compression)",
+    "top_mount_backlash": "free play of the top mount (smoothed dead zone)",
+    "seal_friction_pressure": "rod seal friction growing with the rebound-chamber pressure",
 }
+
+# Parameters of the optional effects (design key ``effect_parameters:``),
+# "<effect>.<name>" -> (SI unit, physical range). Not numbered: the 105
+# parameters of table 5.1 stay 105.
+EFFECT_PARAMETERS: dict[str, tuple[str, "Range"]] = {}  # filled below Range
 
 # Columns of the active-valve P/Q map (parameter no. 52).
 MAP_COLUMNS = ("current [A]", "dp [Pa]", "flow [m^3/s]")
@@ -227,8 +238,7 @@ RANGES: dict[str, Range] = {
     "rod_friction.F_c": NONNEG, "rod_friction.F_s": NONNEG, "rod_friction.k_b": POS,
     "constants.P_atm": POS, "constants.P_ref": POS, "constants.T_ref": TEMPERATURE, "constants.rho_gas": POS,
     "constants.V_gas0": POS, "constants.pt_r_i": POS, "constants.pt_r_o": POS,
-    "constants.wall_ratio_third_tube": POS, "constants.A_bypass": NONNEG, "constants.leak_gap": POS,
-    "constants.leak_length": POS, "constants.Cq_bypass": COEF, "constants.p_transition": POS,
+    "constants.wall_ratio_third_tube": POS, "constants.A_bypass": NONNEG, "constants.Cq_bypass": COEF, "constants.p_transition": POS,
     "constants.zeta": Range(0.0, 3.141592653589793), "constants.k_contact": POS,
     "constants.zeta_contact": NONNEG, "constants.delta_contact": POS,
     **{f"constants.x_max_{v}": POS for v in VALVES},
@@ -252,3 +262,26 @@ ORDERED: tuple[tuple[str, str, bool, str], ...] = (
 POSITIVE_SUMS: tuple[tuple[tuple[str, ...], str], ...] = (
     (("top_mount.c0", "top_mount.c2"), "denominator of eq. 4.34"),
 )
+
+
+EFFECT_PARAMETERS.update({
+    "piston_leakage.gap": ("m", POS),
+    "piston_leakage.length": ("m", POS),
+    "active_valve_lag.tau": ("s", POS),
+    "aeration.alpha0": ("-", Range(0.0, 0.5, True, True)),
+    "aeration.n": ("-", Range(1.0, 1.4, True, True)),
+    "valve_friction_current.F0": ("N", NONNEG),
+    "valve_friction_current.k_I": ("N/A", NONNEG),
+    "valve_friction_current.A_spool": ("m^2", POS),
+    "valve_friction_current.dp_reg": ("Pa", POS),
+    "oil_thermal.C_th": ("J/K", POS),
+    "oil_thermal.hA": ("W/K", NONNEG),
+    "oil_thermal.b_nu": ("1/K", NONNEG),
+    "oil_thermal.c_K": ("1/K", Range(0.0, 0.02, True, True)),
+    "rod_friction_asymmetric.a": ("-", Range(-0.95, 0.95, True, True)),
+    "rod_friction_asymmetric.v_reg": ("m/s", POS),
+    "top_mount_backlash.delta": ("m", NONNEG),
+    "top_mount_backlash.eps": ("m", POS),
+    "seal_friction_pressure.k_p": ("N/Pa", NONNEG),
+    "seal_friction_pressure.p_reg": ("Pa", POS),
+})

@@ -19,6 +19,12 @@ the submodels' flows, and the rod force (eq. 4.1). Each submodel reads its
 own parameters (``p[P.<name>]``) and states (at the offset of its block,
 ``SB.<block>``) and writes its own state rates, so adding a parameter or a
 state to a submodel does not touch this file.
+
+The effects the thesis lacks (README "Effect library") hook in here, each a
+call into its own file that returns its input unchanged when switched off.
+The two with states (active_valve_lag, oil_thermal) run only in the extended
+configurations ``rhs_damper_x`` / ``rhs_module_x`` (layout.variant), whose
+effect states follow the damper / module states.
 """
 
 from __future__ import annotations
@@ -27,15 +33,20 @@ from numba import njit
 
 from ..solver import rhs_signature
 from .active_valve import active_flow
+from .active_valve_lag import lagged_flow
+from .aeration import aeration
 from .bench import upstream_modulus, upstream_pressure_rate
 from .chambers import chamber_volumes, moduli, pressure_rate, rod_force
 from .fluid import gas_spring_pressure
 from .inputs import hermite
-from .layout import BB, O, SB, TB, P, S
+from .layout import (BB, CFG_DAMPER, CFG_DAMPER_X, CFG_MODULE, CFG_MODULE_X, CFG_TOPMOUNT, CFG_VALVE, EB_DAMPER,
+                     EB_MODULE, EX, O, SB, TB, P, S)
+from .oil_thermal import heat, oil_viscosity, thermal_moduli
 from .piston_leakage import leakage
 from .rod import motion, rod_position, stroke
 from .rod_friction import friction
 from .top_mount import mount
+from .valve_friction_current import effective_drop
 from .valves import bypass, valve
 
 SIGNATURE = rhs_signature()
@@ -48,9 +59,9 @@ def excitation_at(t, p, ex):
 
 
 @njit(cache=True, error_model="numpy")
-def _damper(t, y, p, ex, aux, dy, out, module):
+def _damper(t, y, p, ex, aux, dy, out, module, extended):
     """Damper (rod fixed, eq. 4.1: stroke s = u) or module (eq. 4.4: the rod
-    on the top mount, s = u - x_rod)."""
+    on the top mount, s = u - x_rod); ``extended``: with the effect states."""
     for i in range(out.shape[0]):
         out[i] = 0.0
     u, du = excitation_at(t, p, ex)
@@ -65,20 +76,32 @@ def _damper(t, y, p, ex, aux, dy, out, module):
     P_c = y[S.P_c]
     P_b = y[S.P_b]
     P_res = gas_spring_pressure(p[P.P0], p[P.V_G0], y[S.V_g], p[P.GAMMA])
+    oe = EB_MODULE if module else EB_DAMPER  # effect states (extended configurations)
+
+    # oil viscosity, at the oil temperature with the effect oil_thermal
+    nu = p[P.NU]
+    if extended:
+        nu = oil_viscosity(y, oe + EX.T_oil, p)
 
     # valves (eq. 4.19-4.31): 0 piston rebound r->c, 1 piston intake c->r,
     # 2 base compression c->res, 3 base intake res->c
-    Q0 = valve(y, SB.piston_rebound, 0, p, P_r, P_c, dy)
-    Q1 = valve(y, SB.piston_intake, 1, p, P_c, P_r, dy)
-    Q2 = valve(y, SB.base_compression, 2, p, P_c, P_res, dy)
-    Q3 = valve(y, SB.base_intake, 3, p, P_res, P_c, dy)
-    Q_p = Q0 - Q1 + leakage(p, P_r, P_c)  # rebound -> compression (THESIS-ERRATA 7)
+    Q0 = valve(y, SB.piston_rebound, 0, p, P_r, P_c, dy, nu)
+    Q1 = valve(y, SB.piston_intake, 1, p, P_c, P_r, dy, nu)
+    Q2 = valve(y, SB.base_compression, 2, p, P_c, P_res, dy, nu)
+    Q3 = valve(y, SB.base_intake, 3, p, P_res, P_c, dy, nu)
+    Q_p = Q0 - Q1 + leakage(p, P_r, P_c, p[P.NU] / nu)  # rebound -> compression (THESIS-ERRATA 7)
     Q_bv = Q2 - Q3  # compression -> reserve
     Q_bp = bypass(p, P_r, P_b)
-    Q_a = active_flow(p, aux, P_b - P_res)
+    # active valve: static map (4.4), spool friction and lag (effects)
+    Q_a = active_flow(p, aux, effective_drop(p, P_b - P_res))
+    if extended:
+        Q_a = lagged_flow(y, oe + EX.Q_lag, p, Q_a, dy)
 
     # compliance (eq. 4.13-4.18) and chambers (eq. 4.5-4.12)
     K_r, K_c, K_b = moduli(p, P_r, P_c, P_b, P_res)
+    K_c = aeration(p, K_c, P_c)
+    if extended:
+        K_r, K_c, K_b = thermal_moduli(y, oe + EX.T_oil, p, K_r, K_c, K_b)
     V_r, V_c = chamber_volumes(s, A_r, A_b, p[P.L_R0], p[P.L_C0])
     dV_r = -A_r * sd
     dV_c = A_b * sd
@@ -88,8 +111,10 @@ def _damper(t, y, p, ex, aux, dy, out, module):
     dy[S.V_g] = -(Q_bv + Q_a)  # reserve gas (THESIS-ERRATA 8)
 
     # rod friction (eq. 4.38-4.41) and rod force (eq. 4.1)
-    F_mu = friction(y, SB.rod_friction, p, sd, dy)
+    F_mu = friction(y, SB.rod_friction, p, sd, dy, P_r)
     F_d = rod_force(P_r, P_c, A_r, A_b, p[P.P_ATM], F_mu)
+    if extended:
+        heat(y, oe + EX.T_oil, p, F_d * sd, dy)  # dissipated power F_d s' [W]
 
     F_tm = 0.0
     a_rod = 0.0
@@ -129,13 +154,25 @@ def _damper(t, y, p, ex, aux, dy, out, module):
 @njit(SIGNATURE, cache=True, error_model="numpy")
 def rhs_damper(t, y, p, ex, aux, dy, out):
     """Damper configuration: tube displacement prescribed, rod fixed."""
-    _damper(t, y, p, ex, aux, dy, out, False)
+    _damper(t, y, p, ex, aux, dy, out, False, False)
 
 
 @njit(SIGNATURE, cache=True, error_model="numpy")
 def rhs_module(t, y, p, ex, aux, dy, out):
     """Module configuration: the rod on the top mount (eq. 4.4)."""
-    _damper(t, y, p, ex, aux, dy, out, True)
+    _damper(t, y, p, ex, aux, dy, out, True, False)
+
+
+@njit(SIGNATURE, cache=True, error_model="numpy")
+def rhs_damper_x(t, y, p, ex, aux, dy, out):
+    """Damper configuration with the effect states (layout.CFG_DAMPER_X)."""
+    _damper(t, y, p, ex, aux, dy, out, False, True)
+
+
+@njit(SIGNATURE, cache=True, error_model="numpy")
+def rhs_module_x(t, y, p, ex, aux, dy, out):
+    """Module configuration with the effect states (layout.CFG_MODULE_X)."""
+    _damper(t, y, p, ex, aux, dy, out, True, True)
 
 
 @njit(SIGNATURE, cache=True, error_model="numpy")
@@ -149,7 +186,7 @@ def rhs_valve(t, y, p, ex, aux, dy, out):
     Q_in, dQ = excitation_at(t, p, ex)
     P_up = y[BB.bench]
     P_dn = p[P.BENCH_P_DOWN]
-    Q = valve(y, BB.valve, int(p[P.BENCH_VALVE]), p, P_up, P_dn, dy)
+    Q = valve(y, BB.valve, int(p[P.BENCH_VALVE]), p, P_up, P_dn, dy, p[P.NU])
     dy[BB.bench] = upstream_pressure_rate(upstream_modulus(p, P_up), p[P.BENCH_V], Q, Q_in)
     out[O.U] = Q_in
     out[O.V] = dQ
@@ -171,3 +208,6 @@ def rhs_topmount(t, y, p, ex, aux, dy, out):
 
 
 RHS = {"valve": rhs_valve, "damper": rhs_damper, "module": rhs_module, "topmount": rhs_topmount}
+# by configuration code, the extended variants included (layout.variant)
+RHS_BY_CFG = {CFG_VALVE: rhs_valve, CFG_DAMPER: rhs_damper, CFG_MODULE: rhs_module, CFG_TOPMOUNT: rhs_topmount,
+              CFG_DAMPER_X: rhs_damper_x, CFG_MODULE_X: rhs_module_x}

@@ -14,13 +14,17 @@ from enum import IntEnum
 
 import numpy as np
 
-from . import active_valve, bench, chambers, fluid, inputs, piston_leakage, rod, rod_friction, top_mount, valves
+from . import (active_valve, active_valve_lag, aeration, bench, chambers, fluid, inputs, oil_thermal, piston_leakage,
+               rod, rod_friction, rod_friction_asymmetric, seal_friction_pressure, top_mount, top_mount_backlash,
+               valve_friction_current, valves)
 
 from .declarations import Parameter, State, index_enum
 from .valves import SHIM_VALVES, V_SIZE, VALVE_NAMES, valve_states
 
 # ---- parameters: every submodel's declarations, then four valve blocks
-SUBMODELS = (chambers, fluid, valves, piston_leakage, rod_friction, top_mount, rod, active_valve, bench, inputs)
+SUBMODELS = (chambers, fluid, valves, piston_leakage, rod_friction, top_mount, rod, active_valve, bench, inputs,
+             active_valve_lag, aeration, valve_friction_current, oil_thermal, rod_friction_asymmetric,
+             top_mount_backlash, seal_friction_pressure)
 PARAMETERS: tuple[Parameter, ...] = tuple(p for m in SUBMODELS for p in m.PARAMETERS)
 P = index_enum("P", [p.name for p in PARAMETERS] + ["VALVES"], __name__)
 N_PARAMS = len(PARAMETERS) + 4 * V_SIZE
@@ -30,6 +34,14 @@ PARAM_NAMES = tuple(p.name for p in PARAMETERS) + tuple(
 # ---- configurations and their states
 CFG_VALVE, CFG_DAMPER, CFG_MODULE, CFG_TOPMOUNT = 0, 1, 2, 4
 CONFIGURATIONS = {"valve": CFG_VALVE, "damper": CFG_DAMPER, "module": CFG_MODULE, "topmount": CFG_TOPMOUNT}
+# Extended damper / module: the same states plus the states of the effects
+# that need one (appended at the end), used only when one of those effects is
+# on (``variant``), so a run with them off has exactly the states, error norm
+# and results of the model without them.
+CFG_DAMPER_X, CFG_MODULE_X = 5, 6
+EXTENDED = {CFG_DAMPER: CFG_DAMPER_X, CFG_MODULE: CFG_MODULE_X}
+BASE_CONFIGURATION = {CFG_DAMPER_X: CFG_DAMPER, CFG_MODULE_X: CFG_MODULE}
+STATE_EFFECTS = ("E_AV_LAG", "E_THERMAL")  # switches of the effects with states
 
 # A configuration is a sequence of state blocks, one per submodel instance;
 # each submodel reads and writes its own states at its block's offset.
@@ -41,6 +53,8 @@ _DAMPER_BLOCKS = (
 _MODULE_BLOCKS = _DAMPER_BLOCKS + (("rod", rod.STATES), ("top_mount", top_mount.STATES))
 _BENCH_BLOCKS = (("bench", bench.STATES), ("valve", bench.VALVE_STATES))
 _TOPMOUNT_BLOCKS = (("top_mount", top_mount.STATES),)
+_EFFECT_STATES = active_valve_lag.STATES + oil_thermal.STATES
+_EFFECT_BLOCKS = (("effects", _EFFECT_STATES),)
 
 
 def _states(blocks) -> tuple[State, ...]:
@@ -59,6 +73,7 @@ def _offsets(name, blocks):
 STATES: dict[int, tuple[State, ...]] = {
     CFG_VALVE: _states(_BENCH_BLOCKS), CFG_DAMPER: _states(_DAMPER_BLOCKS), CFG_MODULE: _states(_MODULE_BLOCKS),
     CFG_TOPMOUNT: _states(_TOPMOUNT_BLOCKS),
+    CFG_DAMPER_X: _states(_DAMPER_BLOCKS + _EFFECT_BLOCKS), CFG_MODULE_X: _states(_MODULE_BLOCKS + _EFFECT_BLOCKS),
 }
 SB = _offsets("SB", _MODULE_BLOCKS)  # damper / module (the damper is the module's first blocks)
 BB = _offsets("BB", _BENCH_BLOCKS)
@@ -69,6 +84,8 @@ T = index_enum("T", [s.name for s in STATES[CFG_TOPMOUNT]], __name__)
 N_DAMPER = len(STATES[CFG_DAMPER])
 N_MODULE = len(STATES[CFG_MODULE])
 N_STATES = {cfg: len(st) for cfg, st in STATES.items()}
+EX = index_enum("EX", [s.name for s in _EFFECT_STATES], __name__)  # offsets inside the effect-state block
+EB_DAMPER, EB_MODULE = N_DAMPER, N_MODULE  # where the effect-state block starts in CFG_DAMPER_X / CFG_MODULE_X
 assert all(f"F_dahl_{v}" in S.__members__ for v in SHIM_VALVES)
 
 # ---- output channels computed at every output time
@@ -101,6 +118,19 @@ class ParamView:
     def block(self, base: str, k: int, size: int) -> np.ndarray:
         o = int(P[base]) + k * size
         return self.p[o:o + size]
+
+
+def variant(cfg: int, p: np.ndarray) -> int:
+    """The configuration to integrate for parameters p: the extended one when
+    an effect with states is switched on, else ``cfg`` itself."""
+    if cfg in EXTENDED and any(p[P[e]] > 0.5 for e in STATE_EFFECTS):
+        return EXTENDED[cfg]
+    return cfg
+
+
+def base_configuration(cfg: int) -> int:
+    """CFG_DAMPER for CFG_DAMPER_X etc.; other configurations unchanged."""
+    return BASE_CONFIGURATION.get(cfg, cfg)
 
 
 def state_scales(cfg: int) -> np.ndarray:

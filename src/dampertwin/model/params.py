@@ -5,10 +5,12 @@ run from dividing by zero. Pure functions, no I/O."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..design import Design
+from ..design.schema import EFFECT_PARAMETERS
 from .bench import BENCH_BACK_PRESSURE, BENCH_VOLUME
 from .layout import N_PARAMS, PARAMETERS, P, initial_state, state_scales  # noqa: F401  (re-exported)
 from .valves import V_SIZE, VALVE_NAMES, VALVE_PARAMETERS, V
@@ -24,6 +26,8 @@ def _value(decl, design: Design, effects: dict) -> float:
         return 0.0
     if callable(src):
         return float(src(design))
+    if src in EFFECT_PARAMETERS:  # "<effect>.<name>": 0.0 if the design does not declare it (effect then off)
+        return float(design.effect_params[src].value) if src in design.effect_params else 0.0
     group, name = src.split(".", 1)
     if group == "effects":
         return 1.0 if effects[name] else 0.0
@@ -48,6 +52,11 @@ def pack(design: Design, current: float = 1.6, effects: dict | None = None,
     missing = set(EFFECT_INDEX) - set(eff)
     if missing:
         raise ValueError(f"design {design.name!r}: effects {sorted(missing)} not set")
+    for name, on in eff.items():
+        lacking = [k for k in EFFECT_PARAMETERS if on and k.startswith(name + ".") and k not in design.effect_params]
+        if lacking:
+            raise ValueError(f"design {design.name!r}: effect {name!r} is switched on but the design does not "
+                             f"declare {', '.join(lacking)} (section effect_parameters)")
     p = np.zeros(N_PARAMS)
     for decl in PARAMETERS:
         p[P[decl.name]] = _value(decl, design, eff)
@@ -98,3 +107,88 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
         need(p[P.M_ROD] > 0, f"geometry.M_rod = {p[P.M_ROD]!r}; expected > 0")
         need(p[P.TM_FLD0] > 0, f"top_mount.F_LD[0] = {p[P.TM_FLD0]!r}; expected > 0 (static stiffness)")
     return bad
+
+
+@dataclass(frozen=True)
+class EffectRecord:
+    """One switchable effect of the model: what it is, its source, whether
+    the thesis has it (its own optional effect) or it is new, the KPI it
+    moves with the documented direction, and the test that shows it
+    (README "Effect library" is generated from these, ``effects_table``)."""
+
+    name: str
+    description: str
+    source: str
+    thesis: bool
+    kpi: str
+    direction: str
+    test: str
+
+
+_T = "test_simulation.py::test_effect_switch"
+_E = "test_effects.py::test_effect_moves_its_kpi"
+_M13 = "damper, mono-sine 13 Hz +-5 mm"
+_M16 = "damper, mono-sine 16 Hz +-5 mm"
+# Every effect switch of the design (``effects:``).
+EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
+    EffectRecord("gas_content", "gas coming out of solution in the emulsion", "thesis eq. 4.14-4.16", True,
+                 "chamber stiffness", "lower with more gas", _T),
+    EffectRecord("wall_compliance", "tube wall compliance", "thesis eq. 4.17-4.18", True,
+                 "chamber stiffness", "lower with softer walls", _T),
+    EffectRecord("cavitation", "chamber modulus fades at the vapour pressure", "model (chambers.py)", True,
+                 "force after a cavitating reversal", "delayed", _T),
+    EffectRecord("valve_stiction", "squeeze-film stiction of the intake discs", "thesis eq. 4.25", True,
+                 "intake valve opening", "later", _T),
+    EffectRecord("shim_friction", "Dahl friction of the shim stacks", "thesis eq. 4.26", True,
+                 "valve hysteresis", "wider", _T),
+    EffectRecord("jet_force", "flow momentum force on the valves", "thesis eq. 4.24", True,
+                 "valve opening", "larger", _T),
+    EffectRecord("flow_number_cq", "discharge coefficient Cq(lambda)", "thesis eq. 4.30-4.31", True,
+                 "low-flow restriction", "higher", _T),
+    EffectRecord("slot_restriction", "slot in series with the valve opening", "THESIS-ERRATA 25", True,
+                 "high-speed force", "higher", _T),
+    EffectRecord("rod_friction", "LuGre rod friction", "thesis eq. 4.38-4.41", True,
+                 "force at zero speed", "offset by the friction", _T),
+    EffectRecord("top_mount_dynamics", "AutoBushFD rubber dynamics", "thesis eq. 4.32-4.36", True,
+                 "top-mount force", "stiffer and damped", _T),
+    EffectRecord("piston_leakage", "laminar leakage past a worn piston band",
+                 "White, Viscous Fluid Flow, eq. 3-44", False,
+                 f"rebound peak force ({_M13})", "lower", _E),
+    EffectRecord("active_valve_lag", "first-order lag of the active valve's flow behind its static P/Q map",
+                 "Savaresi et al. 2010, 2.3", False,
+                 f"third-tube peak pressure; force-velocity phase lag ({_M16})",
+                 "pressure higher; phase lag smaller (the valve opens late, the pressure builds ahead)", _E),
+    EffectRecord("aeration", "free air in the compression chamber (Boyle)", "Duym, VSD 33 (2000)", False,
+                 f"force-velocity phase lag; compression peak force ({_M16})",
+                 "phase lag larger; compression peak lower (force builds up later)", _E),
+    EffectRecord("valve_friction_current", "current-dependent Coulomb friction of the active valve's spool",
+                 "Manring 2005, 4.6; thesis 7.4", False,
+                 f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E),
+    EffectRecord("oil_thermal", "oil temperature state: viscosity and bulk modulus follow the heating",
+                 "Lion & Loose 2002; Seeton 2006; Totten 2000", False,
+                 f"compression peak force in the last cycle ({_M13}, heating time-compressed x1000)", "lower", _E),
+    EffectRecord("rod_friction_asymmetric", "rod seal friction higher in rebound than in compression",
+                 "Olsson et al., EJC 4 (1998), 3.6", False,
+                 f"friction force in rebound / compression ({_M13})", "rebound larger, compression smaller", _E),
+    EffectRecord("top_mount_backlash", "free play of the top mount (smoothed dead zone)",
+                 "Nordin & Gutman, Automatica 38 (2002)", False,
+                 "top-mount force near zero deflection (top-mount sine 10 Hz +-1 mm)", "lower", _E),
+    EffectRecord("seal_friction_pressure", "rod seal friction growing with the rebound-chamber pressure",
+                 "Mueller & Nau 1998, ch. 9", False,
+                 f"friction force magnitude ({_M13})", "larger", _E),
+)}
+assert set(EFFECTS_LIBRARY) == set(EFFECT_INDEX), sorted(set(EFFECTS_LIBRARY) ^ set(EFFECT_INDEX))
+
+
+def effects_table(design: Design) -> str:
+    """The README "Effect library" table (markdown) from EFFECTS_LIBRARY and
+    the design's effect parameters; tests/test_effects.py checks the README."""
+    rows = ["| effect | what it is | source | parameters | what it should change (test) | off in baseline |",
+            "|---|---|---|---|---|---|"]
+    for r in EFFECTS_LIBRARY.values():
+        if r.thesis:
+            continue
+        eps = ", ".join(f"`{e.key}` ({e.type}, typ. {e.typical:g} {e.unit})" for e in design.effect_parameters(r.name))
+        off = "yes" if not design.effects[r.name] else "no"
+        rows.append(f"| `{r.name}` | {r.description} | {r.source} | {eps} | {r.kpi}: {r.direction} | {off} |")
+    return "\n".join(rows) + "\n"

@@ -1,10 +1,12 @@
 """Leakage past the piston band (not in the thesis model; off in the
-baseline design).
+baseline design). Parameters: effect_parameters piston_leakage.gap (h, C)
+and piston_leakage.length (L, F).
 
 A worn or loose piston band leaves an annular gap h of length L around the
 piston: laminar (Poiseuille) flow between the rebound and compression
 chambers, Q = G (P_r - P_c) with G = pi D h^3 / (12 mu L) [m^3/(s Pa)]
 (White, Viscous Fluid Flow, 3rd ed., eq. 3-44: narrow concentric annulus).
+With the oil_thermal effect, mu follows the oil temperature: G nu0 / nu.
 """
 
 from __future__ import annotations
@@ -17,8 +19,10 @@ from .declarations import Parameter
 
 
 def _conductance(d):
+    if "piston_leakage.gap" not in d.effect_params:  # the design does not declare the effect
+        return 0.0
     mu = d["oil.rho_oil"] * d["oil.nu"]
-    return math.pi * d["geometry.D_PT"] * d.constant("leak_gap") ** 3 / (12.0 * mu * d.constant("leak_length"))
+    return math.pi * d["geometry.D_PT"] * d["piston_leakage.gap"] ** 3 / (12.0 * mu * d["piston_leakage.length"])
 
 
 PARAMETERS = (
@@ -34,10 +38,11 @@ def leakage_flow(G, P_r, P_c):
 
 
 @njit(cache=True, error_model="numpy")
-def leakage(p, P_r, P_c):
-    """The leakage submodel in the assembled model [m^3/s] (0 when off)."""
+def leakage(p, P_r, P_c, fluidity):
+    """The leakage submodel in the assembled model [m^3/s] (0 when off);
+    ``fluidity`` = nu0 / nu (1.0 at the design's oil temperature)."""
     if p[_L.P.E_LEAK] > 0.5:
-        return leakage_flow(p[_L.P.G_LEAK], P_r, P_c)
+        return leakage_flow(p[_L.P.G_LEAK] * fluidity, P_r, P_c)
     return 0.0
 
 

@@ -10,6 +10,7 @@ from numba import njit
 
 from .declarations import Parameter, State, index_enum
 from .top_mount import N_FLD
+from .top_mount_backlash import inverse_dead_zone
 
 PARAMETERS = (Parameter("M_ROD", "kg", "geometry.M_rod", "rod + piston mass (and the sprung share it carries)"),)
 
@@ -27,6 +28,8 @@ def static_rod_offset(q) -> float:
         X -= step
         if abs(step) < 1e-15:
             break
+    if q["E_BACKLASH"] > 0.5:  # the rod also crosses the free play
+        X = inverse_dead_zone(X, q["TB_DELTA"], q["TB_EPS"])
     return X
 
 

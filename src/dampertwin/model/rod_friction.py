@@ -11,6 +11,8 @@ import math
 from numba import njit
 
 from .declarations import Parameter, State, index_enum
+from .rod_friction_asymmetric import direction_factor
+from .seal_friction_pressure import pressure_friction
 
 PARAMETERS = (
     Parameter("FR_FC", "N", "rod_friction.F_c", "Coulomb friction level, eq. 4.41"),
@@ -45,12 +47,24 @@ def lugre(z, dv, k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s):
 
 
 @njit(cache=True, error_model="numpy")
-def friction(y, o, p, dv, dy):
+def friction(y, o, p, dv, dy, P_r):
     """The rod-friction submodel in the assembled model: friction force [N]
-    at extension rate dv [m/s]; writes its state rates into dy[o + Z.*]
-    (o: where the configuration placed this submodel's states)."""
+    at extension rate dv [m/s] and rebound pressure P_r [Pa]; writes its
+    state rates into dy[o + Z.*] (o: where the configuration placed this
+    submodel's states). The effects rod_friction_asymmetric and
+    seal_friction_pressure scale / raise the levels F_c, F_s of eq. 4.41."""
     if p[_L.P.E_ROD_FRICTION] > 0.5:
-        dz, F = lugre(y[o + Z.z], dv, p[_L.P.FR_KB], p[_L.P.FR_FC], p[_L.P.FR_FS], p[_L.P.FR_S2],
+        F_c = p[_L.P.FR_FC]
+        F_s = p[_L.P.FR_FS]
+        if p[_L.P.E_RF_ASYM] > 0.5:
+            f = direction_factor(p[_L.P.RFA_A], dv, p[_L.P.RFA_VREG])
+            F_c *= f
+            F_s *= f
+        if p[_L.P.E_SEAL_P] > 0.5:
+            dF = pressure_friction(p[_L.P.SFP_KP], P_r, p[_L.P.P_ATM], p[_L.P.SFP_PREG])
+            F_c += dF
+            F_s += dF
+        dz, F = lugre(y[o + Z.z], dv, p[_L.P.FR_KB], F_c, F_s, p[_L.P.FR_S2],
                       p[_L.P.FR_CCOMP], p[_L.P.FR_VD], p[_L.P.FR_AS], p[_L.P.FR_ALPHAS])
         dy[o + Z.z] = dz
         return F

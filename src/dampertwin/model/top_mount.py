@@ -11,6 +11,7 @@ from __future__ import annotations
 from numba import njit
 
 from .declarations import Parameter, State, index_enum
+from .top_mount_backlash import backlash
 
 N_FLD = 5  # coefficients of the static load-deflection polynomial
 
@@ -79,7 +80,9 @@ def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, co
 def mount(y, o, p, X, Xdot, dy):
     """The top-mount submodel in the assembled model: force [N] at deflection
     X [m] and rate Xdot [m/s]; writes its state rates into dy[o + TM.*]
-    (frozen when the dynamics are switched off)."""
+    (frozen when the dynamics are switched off). With top_mount_backlash
+    the rubber sees the dead-zone deflection."""
+    X, Xdot = backlash(p, X, Xdot)
     x = y[o + TM.tm_x]
     yy = y[o + TM.tm_y]
     w = y[o + TM.tm_w]

@@ -260,19 +260,20 @@ def valve_acceleration(p, o, x, v, F_dahl, dp_disc, cq, A_f, mu, zeta, k_c, zeta
 
 
 @njit(cache=True, error_model="numpy")
-def valve(y, o, k, p, p1, p2, dy):
+def valve(y, o, k, p, p1, p2, dy, nu):
     """Valve k (parameter block k) in the assembled model, its states at
-    y[o + VS.*], between upstream p1 and downstream p2 [Pa]: writes its
-    state rates, returns the flow p1 -> p2 [m^3/s]."""
+    y[o + VS.*], between upstream p1 and downstream p2 [Pa], oil viscosity
+    nu [m^2/s] (p[P.NU] unless oil_thermal): writes its state rates, returns
+    the flow p1 -> p2 [m^3/s]."""
     b = _L.P.VALVES + k * V_SIZE
     x = y[o + VS.x]
     v = y[o + VS.v]
     shim = p[b + V.SHIM] > 0.5
     F_dahl = y[o + VS.F_dahl] if shim else 0.0
     rho = p[_L.P.RHO]
-    Q, dp_disc, cq, A_f = valve_flow(p, b, x, p1 - p2, rho, p[_L.P.NU], p[_L.P.P_TR],
+    Q, dp_disc, cq, A_f = valve_flow(p, b, x, p1 - p2, rho, nu, p[_L.P.P_TR],
                                      p[_L.P.E_CQ] > 0.5, p[_L.P.E_SLOT] > 0.5)
-    a, dF = valve_acceleration(p, b, x, v, F_dahl, dp_disc, cq, A_f, rho * p[_L.P.NU], p[_L.P.ZETA],
+    a, dF = valve_acceleration(p, b, x, v, F_dahl, dp_disc, cq, A_f, rho * nu, p[_L.P.ZETA],
                                p[_L.P.K_C], p[_L.P.ZETA_C], p[_L.P.DELTA_C], p[_L.P.E_JET] > 0.5,
                                p[_L.P.E_STICTION] > 0.5, p[_L.P.E_SHIM_FRICTION] > 0.5)
     dy[o + VS.x] = v

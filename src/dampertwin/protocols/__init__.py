@@ -230,11 +230,12 @@ def recording_rates(protocol: dict) -> float | dict[str, float]:
 
 
 def load_all(conf_dir: str | Path) -> dict[str, dict]:
-    """Every protocol in ``conf_dir`` (conf/test), keyed by protocol name."""
+    """Every protocol in ``conf_dir`` (conf/test), keyed by file stem (the
+    test's name: ``monosine16.yaml`` is a second ``protocol: monosine`` test
+    and must not replace ``monosine.yaml``)."""
     out = {}
     for f in sorted(Path(conf_dir).glob("*.yaml")):
-        doc = load_protocol(f)
-        out[doc["protocol"]] = doc
+        out[f.stem] = load_protocol(f)
     return out
 
 

@@ -1,0 +1,309 @@
+"""Time-resolved grouped first-order Sobol indices (thesis 7.1, L1434-1436,
+L1527-1536) and the sensitivity-weighted objective of eq. 7.1.
+
+The thesis runs a variance-based sensitivity analysis of the simulated
+damper force at *every time point* of the training signal, with the
+parameters grouped by valve (4 groups), 32 base samples of SALib's grouped
+Saltelli design with second order: 32 x (2 x 4 + 2) = 320 simulations.
+
+- :func:`sample` draws the design with SALib (``SALib.sample.sobol``, the
+  Saltelli scheme on a scrambled Sobol' sequence, seeded) in gene space
+  [0, 1] and maps it to parameter values through the fitted quantities'
+  :class:`~dampertwin.calibration.ga.ParamSpec` (lin / log).
+- :func:`first_order` is the Saltelli et al. (2010) first-order estimator
+  SALib's ``analyze.sobol`` uses (outputs standardised over all runs, index
+  = mean(B (AB_j - A)) / var([A; B])) vectorised with numpy over all time
+  points at once, with SALib's bootstrap confidence (same resamples when
+  given the same seed) and a mask for instants whose output does not vary
+  between runs (there the index is undefined: NaN, weight 0).
+- :func:`weights` cleans the index curves into eq.-7.1 weights: clip,
+  optional moving-average smoothing, per-group normalisation (all named
+  settings, :class:`WeightSettings`).
+- :func:`weighted_integrals` is eq. 7.1,
+  J_i = int_0^T I_i(t) |F_test(t) - F_sim(Theta_i, t)| dt, for a batch of
+  simulations and all groups at once (trapezoid rule).
+
+Nothing here knows the damper: any model output (n_runs x n_times) works.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+import pandas as pd
+from scipy.stats import norm
+
+from ..errors import UserError
+from .ga import ParamSpec
+
+EPS = np.finfo(float).eps
+
+
+@dataclass(frozen=True)
+class Group:
+    """A parameter group (thesis: all parameters of one valve)."""
+
+    name: str
+    specs: tuple[ParamSpec, ...]
+
+
+def salib_problem(groups: Sequence[Group]) -> dict:
+    """SALib problem in gene space (every gene in [0, 1]) with groups."""
+    names, grp = [], []
+    for g in groups:
+        if not g.specs:
+            raise UserError(f"sensitivity group {g.name!r} has no parameters")
+        for s in g.specs:
+            names.append(s.key)
+            grp.append(g.name)
+    if len(set(names)) != len(names):
+        raise UserError(f"sensitivity groups share parameters: {sorted(n for n in set(names) if names.count(n) > 1)}")
+    return {"num_vars": len(names), "names": names, "bounds": [[0.0, 1.0]] * len(names), "groups": grp}
+
+
+def runs_needed(n_base: int, n_groups: int, second_order: bool = True) -> int:
+    """Simulations of a grouped Saltelli design: N (2G + 2) with second
+    order, N (G + 2) without (thesis: 32 x 10 = 320)."""
+    return n_base * (2 * n_groups + 2 if second_order else n_groups + 2)
+
+
+def sample(groups: Sequence[Group], n_base: int, seed: int, second_order: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Grouped Saltelli design (SALib, scrambled Sobol', seeded). Returns
+    (genes [n, k] in [0, 1], values [n, k] in SI) with n = runs_needed(...)."""
+    from SALib.sample import sobol as sobol_sample
+
+    if n_base < 2 or n_base & (n_base - 1):
+        raise UserError(f"sensitivity: n_base = {n_base}; the Sobol' sequence needs a power of 2 (thesis: 32)")
+    problem = salib_problem(groups)
+    G = np.asarray(sobol_sample.sample(problem, n_base, calc_second_order=second_order, scramble=True,
+                                       seed=int(seed)), float)
+    specs = [s for g in groups for s in g.specs]
+    X = np.column_stack([s.to_value(G[:, j]) for j, s in enumerate(specs)])
+    return G, X
+
+
+@dataclass
+class SobolResult:
+    """First-order indices S1[g, t] of each group at each instant, their
+    bootstrap confidence half-width (SALib's ``S1_conf``: z * std of the
+    resampled estimates) and the mask of instants without output variance."""
+
+    groups: list[str]
+    S1: np.ndarray  # (G, T), NaN where masked
+    S1_conf: np.ndarray  # (G, T), NaN where masked
+    masked: np.ndarray  # (T,) bool
+    conf_level: float = 0.95
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def lower(self) -> np.ndarray:
+        return self.S1 - self.S1_conf
+
+    @property
+    def upper(self) -> np.ndarray:
+        return self.S1 + self.S1_conf
+
+    def to_frame(self, t: np.ndarray) -> pd.DataFrame:
+        """Tidy: one row per (group, instant), unit-suffixed columns."""
+        G, T = self.S1.shape
+        return pd.DataFrame({
+            "time [s]": np.tile(np.asarray(t, float), G),
+            "group": np.repeat(np.array(self.groups, dtype=object), T),
+            "S1 [-]": self.S1.ravel(), "S1 conf [-]": self.S1_conf.ravel(),
+            "S1 lower [-]": self.lower.ravel(), "S1 upper [-]": self.upper.ravel(),
+            "masked": np.tile(self.masked, G),
+        })
+
+
+def _split(Y: np.ndarray, D: int, second_order: bool):
+    """SALib's ordering of a Saltelli design: per base sample A, AB_1..AB_D,
+    (BA_1..BA_D), B. Y is (n_runs, T); returns A, B (N, T), AB (N, D, T)."""
+    step = 2 * D + 2 if second_order else D + 2
+    if Y.shape[0] % step:
+        raise ValueError(f"{Y.shape[0]} runs is not a multiple of {step} (grouped Saltelli design with "
+                         f"{D} groups, second_order={second_order})")
+    Z = Y.reshape(Y.shape[0] // step, step, Y.shape[1])
+    return Z[:, 0], Z[:, step - 1], Z[:, 1:D + 1]
+
+
+def _s1(A, AB, B):
+    """Saltelli 2010 first-order estimator, leading axis = samples; A, B
+    (N, ...), AB (N, D, ...) -> (D, ...)."""
+    var = np.var(np.concatenate([A, B], axis=0), axis=0)
+    num = np.mean(B[:, None] * (AB - A[:, None]), axis=0)
+    return np.divide(num, var, out=np.zeros_like(num), where=var > EPS)
+
+
+def first_order(Y: np.ndarray, n_groups: int, *, second_order: bool = True, num_resamples: int = 100,
+                conf_level: float = 0.95, seed: int | None = None, mask_rel_std: float = 1e-9,
+                chunk: int = 2048) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Time-resolved first-order indices of a grouped Saltelli design.
+
+    ``Y`` is (n_runs, T): the model output of every run of :func:`sample`
+    at every instant. Each instant is treated exactly as
+    ``SALib.analyze.sobol.analyze(problem, Y[:, t], seed=seed)`` treats a
+    scalar output (standardised over all runs; bootstrap with the same
+    resample indices), but all instants at once. Instants whose output std
+    over the runs is below ``mask_rel_std`` times the largest std over time
+    (or not finite) are masked (NaN). Returns (S1 (G, T), S1_conf (G, T),
+    masked (T,))."""
+    Y = np.asarray(Y, float)
+    if Y.ndim != 2:
+        raise ValueError(f"Y must be (runs, instants), got shape {Y.shape}")
+    D = int(n_groups)
+    step = 2 * D + 2 if second_order else D + 2
+    N = Y.shape[0] // step
+    finite = np.all(np.isfinite(Y), axis=0)
+    sd = np.where(finite, np.nanstd(np.where(np.isfinite(Y), Y, np.nan), axis=0), 0.0)
+    scale = float(sd.max()) if sd.size and np.any(sd > 0) else 0.0
+    masked = ~finite | (sd <= mask_rel_std * scale) | (sd <= EPS)
+    # SALib draws with np.random.default_rng(seed).integers when seed is truthy (same resamples here);
+    # it leaves seed 0 / None unseeded, this module never does: every draw is seeded
+    rng = np.random.default_rng(seed if seed else 0)
+    r = rng.integers(N, size=(N, num_resamples))
+    z = norm.ppf(0.5 + conf_level / 2)
+    T = Y.shape[1]
+    S1 = np.full((D, T), np.nan)
+    conf = np.full((D, T), np.nan)
+    live = np.flatnonzero(~masked)
+    for lo in range(0, len(live), chunk):
+        cols = live[lo:lo + chunk]
+        y = Y[:, cols]
+        y = (y - y.mean(axis=0)) / y.std(axis=0)  # SALib standardises the output (over all runs)
+        A, B, AB = _split(y, D, second_order)
+        S1[:, cols] = _s1(A, AB, B)
+        # bootstrap: resample the base samples (rows) with SALib's indices r (N, R)
+        Ar, Br, ABr = A[r], B[r], AB[r]  # (N, R, c), (N, R, c), (N, R, D, c)
+        var = np.var(np.concatenate([Ar, Br], axis=0), axis=0)  # (R, c)
+        num = np.mean(Br[:, :, None] * (ABr - Ar[:, :, None]), axis=0)  # (R, D, c)
+        Sr = np.divide(num, var[:, None], out=np.zeros_like(num), where=var[:, None] > EPS)
+        conf[:, cols] = z * Sr.std(axis=0, ddof=1)
+    return S1, conf, masked
+
+
+def analyse(Y: np.ndarray, groups: Sequence[Group] | Sequence[str], **kw) -> SobolResult:
+    """:func:`first_order` wrapped in a :class:`SobolResult`."""
+    names = [g.name if isinstance(g, Group) else str(g) for g in groups]
+    S1, conf, masked = first_order(Y, len(names), **kw)
+    return SobolResult(names, S1, conf, masked, kw.get("conf_level", 0.95))
+
+
+def run(groups: Sequence[Group], output: Callable[[np.ndarray], np.ndarray], n_base: int, seed: int, *,
+        second_order: bool = True, num_resamples: int = 100, conf_level: float = 0.95,
+        mask_rel_std: float = 1e-9) -> tuple[SobolResult, np.ndarray]:
+    """Sample, evaluate ``output(values [n, k]) -> (n, T)`` (any model
+    output; one batch call), analyse. A run whose output is not finite (a
+    failed simulation) invalidates its base sample's block of the Saltelli
+    design (A, AB_j, BA_j, B); such blocks are left out, the estimate uses
+    the remaining base samples (independent draws, so it stays unbiased),
+    and ``result.meta`` says how many were dropped; fewer than 2 complete
+    blocks is an error. Returns (result, Y) with Y the complete blocks."""
+    _, X = sample(groups, n_base, seed, second_order)
+    Y = np.asarray(output(X), float)
+    if Y.ndim != 2 or Y.shape[0] != len(X):
+        raise ValueError(f"sensitivity output must be (runs={len(X)}, instants), got {Y.shape}")
+    step = len(X) // n_base
+    ok_run = np.all(np.isfinite(Y), axis=1)
+    ok_block = ok_run.reshape(n_base, step).all(axis=1)
+    if ok_block.sum() < 2:
+        raise UserError(f"sensitivity: {int((~ok_run).sum())} of {len(X)} simulations failed, leaving "
+                        f"{int(ok_block.sum())} complete base samples of {n_base}; the estimator needs at least 2 "
+                        f"(narrow the search windows or raise the wall-time cap)")
+    Y = Y.reshape(n_base, step, -1)[ok_block].reshape(-1, Y.shape[1])
+    res = analyse(Y, groups, second_order=second_order, num_resamples=num_resamples, conf_level=conf_level,
+                  seed=seed, mask_rel_std=mask_rel_std)
+    res.meta.update({"runs": len(X), "n_base": n_base, "seed": seed, "second_order": second_order,
+                     "num_resamples": num_resamples, "masked_instants": int(res.masked.sum()),
+                     "failed_runs": int((~ok_run).sum()), "dropped_base_samples": int((~ok_block).sum())})
+    return res, Y
+
+
+# ------------------------------------------------------------ weights (eq. 7.1)
+@dataclass(frozen=True)
+class WeightSettings:
+    """Clean-up of index curves into eq.-7.1 weights.
+
+    - ``clip``: [lo, hi] the estimates are clipped to (a first-order index
+      is in [0, 1]; the estimator's noise leaves it slightly outside);
+    - ``smooth_s``: centred moving-average window [s] (0: none), against
+      estimator noise between neighbouring instants;
+    - ``normalise``: per group, ``max`` (each weight curve peaks at 1),
+      ``mean`` (mean 1 over time) or ``none``;
+    - masked instants (no output variance) weigh 0."""
+
+    clip: tuple[float, float] = (0.0, 1.0)
+    smooth_s: float = 0.0
+    normalise: str = "max"
+
+    @classmethod
+    def from_config(cls, c, where: str = "conf/calibration/approach2.yaml: weights") -> "WeightSettings":
+        if not isinstance(c, dict) and not hasattr(c, "get"):
+            raise UserError(f"{where}: expected a mapping with clip, smooth_s, normalise")
+        unknown = set(c) - {"clip", "smooth_s", "normalise"}
+        if unknown:
+            raise UserError(f"{where}: unknown key(s) {sorted(unknown)}; expected clip, smooth_s, normalise")
+        clip = list(c.get("clip", [0.0, 1.0]))
+        if len(clip) != 2 or not clip[0] < clip[1]:
+            raise UserError(f"{where}.clip: expected [lo, hi] with lo < hi, got {clip!r}")
+        sm = c.get("smooth_s", 0.0)
+        if not isinstance(sm, (int, float)) or sm < 0:
+            raise UserError(f"{where}.smooth_s: expected a window >= 0 [s], got {sm!r}")
+        nm = c.get("normalise", "max")
+        if nm not in ("max", "mean", "none"):
+            raise UserError(f"{where}.normalise: expected max, mean or none, got {nm!r}")
+        return cls((float(clip[0]), float(clip[1])), float(sm), str(nm))
+
+
+def weights(S1: np.ndarray, t: np.ndarray, settings: WeightSettings = WeightSettings()) -> np.ndarray:
+    """Index curves (G, T) -> weights (G, T) >= 0 (vectorised)."""
+    from scipy.ndimage import uniform_filter1d
+
+    W = np.clip(np.nan_to_num(np.asarray(S1, float), nan=0.0), *settings.clip)
+    W = np.maximum(W, 0.0)
+    if settings.smooth_s > 0:
+        dt = float(np.median(np.diff(t)))
+        n = max(1, int(round(settings.smooth_s / dt)))
+        if n > 1:
+            W = np.maximum(uniform_filter1d(W, n, axis=1, mode="nearest"), 0.0)  # no round-off below 0
+    if settings.normalise != "none":
+        ref = W.max(axis=1) if settings.normalise == "max" else W.mean(axis=1)
+        W = np.divide(W, ref[:, None], out=np.zeros_like(W), where=ref[:, None] > 0)
+    return W
+
+
+def weighted_integrals(abs_residual: np.ndarray, quad_weights: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """Eq. 7.1 for a batch: J[m, g] = sum_t W[g, t] |r[m, t]| w_t with w_t
+    the trapezoid weights [s]; NaN rows (failed runs) stay NaN."""
+    R = np.asarray(abs_residual, float)
+    return R @ (W * np.asarray(quad_weights, float)[None, :]).T
+
+
+def figure(t: np.ndarray, res: SobolResult, signal: np.ndarray | None = None, signal_label: str = "force [N]",
+           title: str = "First-order Sobol index of the simulated force (thesis fig. 7.6a)"):
+    """Index curves with their bootstrap band, over the training signal
+    (like thesis fig. 7.6a / b)."""
+    import matplotlib.pyplot as plt
+
+    rows = 2 if signal is not None else 1
+    fig, axes = plt.subplots(rows, 1, figsize=(12, 3.2 * rows + 1), sharex=True, constrained_layout=True,
+                             squeeze=False)
+    ax = axes[0, 0]
+    for i, g in enumerate(res.groups):
+        line, = ax.plot(t, res.S1[i], lw=0.8, label=g)
+        ax.fill_between(t, np.clip(res.lower[i], -0.2, 1.2), np.clip(res.upper[i], -0.2, 1.2),
+                        color=line.get_color(), alpha=0.15, lw=0)
+    ax.set(ylabel="S1 [-]", ylim=(-0.1, 1.1), title=title)
+    ax.legend(loc="upper right", ncol=len(res.groups))
+    ax.grid(alpha=0.3)
+    if signal is not None:
+        axes[1, 0].plot(t, signal, "k", lw=0.6)
+        axes[1, 0].set(ylabel=signal_label)
+        axes[1, 0].grid(alpha=0.3)
+    axes[-1, 0].set(xlabel="time [s]")
+    return fig
+
+
+__all__ = ["Group", "SobolResult", "WeightSettings", "salib_problem", "runs_needed", "sample", "first_order",
+           "analyse", "run", "weights", "weighted_integrals", "figure"]

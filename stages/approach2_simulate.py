@@ -1,0 +1,65 @@
+"""DVC stage `approach2_simulate`: the approach-2 design (valves and
+compliance of approach2_fit, top mount of the approach-1 fit) and, side by
+side, the approach-1 design (results/approach1/designs/baseline_1.6.yaml)
+through the approach-2 verification tests, each driven by the recorded
+displacement of the measurement (thesis 6.5 / L1430):
+- monosine16 (module, 16 Hz / 0.5 m/s / 10 mm, three currents; table 7.1),
+- random (module, the road-noise records of the three baseline cases; table 7.2),
+- verification (damper, pseudo-random; force, overfitting check L1561).
+Force and acceleration pass the documented transducer bandwidths.
+-> results/approach2/sim/<approach1|approach2>/<test>.parquet."""
+
+import pandas as pd
+
+from _approach2 import CURRENTS, OUT2, approach1_design, approach2_design
+from _common import CONF, config, config_hash, measured_dir, stage
+from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.protocols import load_protocol
+from dampertwin.report import simulate_from_record
+from dampertwin.sensors import sensor_lowpass
+
+TESTS = {"monosine16": "module", "random": "module", "verification": "damper"}
+
+
+def records(test: str):
+    """(file, [(run label, current, record)]) of a test."""
+    if test == "random":
+        out = []
+        for run, case in CURRENTS.items():
+            df, _ = read_frame(measured_dir() / "random" / f"{case}.parquet", "random")
+            out += [(run, float(g["current [A]"].iloc[0]), g) for _, g in runs(df)]
+        return out
+    df, _ = read_frame(measured_dir() / test / "baseline.parquet")
+    return [(name, float(g["current [A]"].iloc[0]), g) for name, g in runs(df)]
+
+
+def main() -> None:
+    cfg = config()
+    designs = {"approach1": approach1_design(), "approach2": approach2_design()}
+    for test, conf_ in TESTS.items():
+        sensors = load_protocol(CONF / "test" / f"{test}.yaml").get("sensors", {})
+        recs = records(test)
+        for name, design in designs.items():
+            frames = []
+            for run, cur, g in recs:
+                r = simulate_from_record(design, g, conf_, cur)
+                if not r.ok:
+                    raise RuntimeError(f"{name}/{test}/{run}: simulation failed: {r.stats.message}")
+                f = r.to_frame()
+                fs = 1.0 / float(f["time [s]"].diff().mean())
+                force = "top mount force [N]" if conf_ == "module" else "rod force [N]"
+                cols = {"time [s]": f["time [s]"], "displacement [m]": f["displacement [m]"],
+                        "force [N]": sensor_lowpass(f[force].to_numpy(), sensors.get("force"), fs),
+                        "current [A]": cur}
+                if conf_ == "module":
+                    cols["rod acceleration [m/s^2]"] = sensor_lowpass(f["rod acceleration [m/s^2]"].to_numpy(),
+                                                                      sensors.get("acceleration"), fs)
+                frames.append(pd.DataFrame(cols).assign(run=run))
+            write_frame(OUT2 / "sim" / name / f"{test}.parquet", pd.concat(frames, ignore_index=True),
+                        {"synthetic": False, "simulated": True, "approach": name, "protocol": test,
+                         "design_hash": design.hash(), "config_hash": config_hash(), "profile": cfg.profile.name,
+                         "input": "recorded displacement of the measurement, low-passed", "sensors [Hz]": sensors})
+
+
+if __name__ == "__main__":
+    stage(main, "approach2_simulate")
