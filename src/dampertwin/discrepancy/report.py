@@ -190,6 +190,7 @@ def write_report(out, design, problem, res, doc, args) -> None:
         "## Notes", "",
         *[f"- {n}" for n in res.get("notes", [])],
         f"- simulations run: {problem.n_sims} (record x design)",
+        *[f"- failed simulation batch: {x}" for x in dict.fromkeys(problem.failures)][:10],
         "- Held-out records are other velocities / currents / tests than the fitted ones (alternating); the "
         "decision uses the held-out gain in chi^2 minus k ln(cycles) and a bootstrap over cycles.",
         f"- The augmented design is `{doc['design']}`.",

@@ -141,6 +141,7 @@ class Problem:
     progress: bool = True
     n_sims: int = 0
     W: np.ndarray | None = None
+    failures: list = field(default_factory=list)
 
     @property
     def labels(self):
@@ -185,23 +186,27 @@ class Problem:
                     ds.append(designs[0] if var is None else var.apply(designs[0]))
                     bad.append(True)
             fs = 1.0 / float(np.mean(np.diff(u.t)))
-            try:
-                _, ch, status = simulate_batch(ds, u.excitation, u.configuration, current=u.current, rate=fs,
-                                               duration=float(u.t[-1] - u.t[0]), channels=F.sim_channels(u),
-                                               max_wall_s=600.0)
-            except Exception:  # noqa: BLE001 - one invalid member must not lose the population
-                status = np.ones(len(ds), int)
-                ch = None
-            self.n_sims += len(ds)
-            rows, sig = [], []
-            for j in range(len(ds)):
-                if bad[j] or status[j] != 0 or ch is None:
-                    rows.append(np.full(u.per_cycle.shape, np.nan))
-                    sig.append(None)
+            # one batch per pattern of effect switches (effects with states must be alike in a batch)
+            groups: dict = {}
+            for j, d in enumerate(ds):
+                groups.setdefault(tuple(sorted(d.effects.items())), []).append(j)
+            rows = [np.full(u.per_cycle.shape, np.nan) for _ in ds]
+            sig = [None] * len(ds)
+            for members in groups.values():
+                try:
+                    _, ch, status = simulate_batch([ds[j] for j in members], u.excitation, u.configuration,
+                                                   current=u.current, rate=fs, duration=float(u.t[-1] - u.t[0]),
+                                                   channels=F.sim_channels(u), max_wall_s=600.0)
+                except Exception as e:  # noqa: BLE001 - one invalid member must not lose the population
+                    self.failures.append(f"{u.key}: {type(e).__name__}: {e}")
                     continue
-                s = F.sim_signals(u, ch, j)
-                rows.append(F.sim_features(u, s, self.fcfg))
-                sig.append(s if keep else None)
+                self.n_sims += len(members)
+                for m, j in enumerate(members):
+                    if bad[j] or status[m] != 0:
+                        continue
+                    s = F.sim_signals(u, ch, m)
+                    rows[j] = F.sim_features(u, s, self.fcfg)
+                    sig[j] = s if keep else None
             pcs.append(rows)
             kept.append(sig)
         out = [Row([pcs[i][j] for i in range(len(self.units))]) for j in range(len(designs))]
@@ -381,11 +386,17 @@ def _gap(z, mask) -> float:
 
 
 def _where(problem: Problem, z: np.ndarray, dcfg: dict) -> list:
+    """Bins / bands whose |residual| / noise exceeds ``where_z``: test, case
+    (the file's case), phase_or_band (the run, when the file holds several,
+    the channel and the phase bin or band), excess (|residual| / noise)."""
+    n_runs: dict = {}
+    for u in problem.units:
+        n_runs[(u.test, u.case)] = n_runs.get((u.test, u.case), 0) + 1
     out = []
     for (test, case, run, ch, ph), v in zip(problem.labels, z):
         if np.isfinite(v) and abs(v) >= float(dcfg["where_z"]):
-            out.append({"test": test, "case": case if run in ("None", case) else f"{case}/{run}",
-                        "phase_or_band": f"{ch}: {ph}", "excess": round(float(abs(v)), 2)})
+            where = f"{ch}: {ph}" if n_runs[(test, case)] == 1 else f"{run} {ch}: {ph}"
+            out.append({"test": test, "case": case, "phase_or_band": where, "excess": round(float(abs(v)), 2)})
     out.sort(key=lambda r: -r["excess"])
     return out[: int(dcfg["where_max"])]
 
@@ -536,9 +547,14 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         ch_ = chi(zf, held)
         closed = (chi_cal_h - ch_) / max(chi_cal_h - nh, 1e-9)
         stats[c.name] = {"gain": chi_cal_h - ch_ - pen, "closed": closed, "penalty": pen, "k": k, "cand": c}
+    # a pair is eligible only when each of its effects alone gains on held-out data (no free rider)
+    for n in list(stats):
+        if "+" in n and not all(stats.get(m, {}).get("gain", -1.0) > 0 for m in n.split("+")):
+            stats[n]["eligible"] = False
+            log.append(f"{n}: not eligible (an effect of the pair does not gain on held-out data alone)")
     rng = np.random.default_rng(seed)
     B = int(prof["bootstrap"])
-    names = list(stats)
+    names = [n for n in stats if stats[n].get("eligible", True)]
     wins = dict.fromkeys(names, 0)
     for _ in range(B):
         boot = [rng.integers(0, u.n_cycles, u.n_cycles) for u in units]
@@ -548,8 +564,8 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
             bn = max(g, key=g.get)
             if g[bn] > 0:
                 wins[bn] += 1
-    for n in names:
-        stats[n]["share"] = wins[n] / max(B, 1)
+    for n in stats:
+        stats[n]["share"] = wins.get(n, 0) / max(B, 1)
     res["stats"] = stats
     for n, st in stats.items():
         log.append(f"{n}: held-out chi2 gain {st['gain']:.1f} after a penalty of {st['penalty']:.1f} "
