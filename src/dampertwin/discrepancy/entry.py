@@ -132,7 +132,7 @@ def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp", dir=out.parent))
     try:
-        res["design"].dump(tmp / "design.yaml")
+        _dump_design(res["design"], tmp)
         (tmp / "verdict.json").write_text(json.dumps(doc, indent=2) + "\n")
         write_report(tmp, d, problem, res, doc, {"design": design, "measured": measured, "profile": profile,
                                                  "seed": int(seed)})
@@ -142,6 +142,25 @@ def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
-    # the augmented design must load from its new place
-    load(out / "design.yaml", map_dirs=[conf / "design"])
+    # the augmented design must load from its new place, on its own
+    load(out / "design.yaml")
     return doc
+
+
+def _dump_design(design, folder: Path) -> None:
+    """OUT/design.yaml with its P/Q map beside it (a design that loads on its own)."""
+    from ..design import write_map
+
+    rel = str(design.param(52).value)
+    name = Path(rel).name
+    write_map(folder / name, design.pq_map)
+    text = design.dumps(folder.resolve())
+    lines = text.splitlines(keepends=True)
+    out, in52 = [], False
+    for line in lines:
+        if line.startswith(("- no: ", "- 'no': ")):
+            in52 = line.split(":", 1)[1].strip() == "52"
+        if in52 and line.lstrip().startswith("value: "):
+            line = line[: line.index("value: ")] + f"value: {name}\n"
+        out.append(line)
+    (folder / "design.yaml").write_text("".join(out))
