@@ -99,6 +99,7 @@ def main(argv=None) -> int:
     for t, c in only:
         tests.setdefault(t, []).append(c)
     work = Path(args.work or tempfile.mkdtemp(prefix="dt_bench_"))
+    work.mkdir(parents=True, exist_ok=True)
     plan, names = cases(args, design, cfg, rng)
     rows = []
     t0 = time.time()
