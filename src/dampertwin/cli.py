@@ -92,7 +92,10 @@ def _main(argv: list[str]) -> int:
     lab.add_argument("--seed", type=int, default=0, help="noise / scatter seed")
     lab.add_argument("--conf", default=None, help="configuration folder with test/ and variant/ (default the project's)")
     lab.add_argument("--workers", type=int, default=None, help="parallel processes (default: all cores)")
+    _add_discrepancy(sub)
     args = ap.parse_args(argv)
+    if args.cmd == "discrepancy":
+        return _run_discrepancy(args)
     if args.cmd == "lab":
         return _run_lab(args)
     if args.cmd in ("import", "fit"):
@@ -177,6 +180,27 @@ def _run_import_fit(args) -> int:
         print(f"dampertwin fit: {e}", file=sys.stderr)
         return 1
     print(path)
+    return 0
+
+
+def _add_discrepancy(sub) -> None:
+    dis = sub.add_parser("discrepancy", help="find where simulation and measurement disagree, name the missing "
+                                             "effect, add it (OUT/verdict.json, design.yaml, report.md, plots/)")
+    dis.add_argument("--design", required=True, help="design YAML to examine (nominal or calibrated)")
+    dis.add_argument("--measured", required=True, help="measured folder DIR/<test>/<case>.parquet")
+    dis.add_argument("--out", required=True, help="output folder")
+    dis.add_argument("--profile", choices=("ci", "full"), default="ci", help="budget (conf/discrepancy.yaml)")
+    dis.add_argument("--seed", type=int, default=0, help="seed of every random draw (bootstrap)")
+
+
+def _run_discrepancy(args) -> int:
+    """Exit 0 for every verdict; bad input raises a UserError (exit 2, file named)."""
+    from .discrepancy.entry import main as run_discrepancy
+
+    doc = run_discrepancy(args.design, args.measured, args.out, profile=args.profile, seed=args.seed)
+    print(f"verdict: {doc['verdict']}" + (f" ({', '.join(doc['effects'])})" if doc["effects"] else "")
+          + f"; held-out gap {doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g} "
+          f"(closed {100 * doc['gap']['closed_fraction']:.0f} %); {Path(args.out) / 'verdict.json'}")
     return 0
 
 

@@ -1,0 +1,159 @@
+"""Hidden-effect matrix of the discrepancy workflow (issue 11, acceptance 1).
+
+Generates SYNTHETIC lab data with `dampertwin lab` (dampertwin.lab.run_lab)
+for cases drawn from the arguments (seeds and magnitudes come from the
+command line; nothing is stored as an expected answer), runs the workflow
+from the nominal design (ci profile) on each, and prints ONE JSON line:
+counts per cell and the rates of the issue.
+
+Cells:
+  control   nominal part with parameter deviations within bounds (random
+            factors, --dev spread) on the shipped lab's benches, no effect
+  single    one library effect (every candidate the design's catalogue
+            lists: effect_parameters typical magnitude x --scale)
+  pair      two library effects together
+  artefact  out of library: accelerometer mount resonance or load-cell
+            crosstalk added to the measured records
+
+    python bench/discrepancy.py --controls 2 --per-effect 1 --pairs 1 --artefacts 2 --seed 7 --scale 1.5
+
+A matrix of the issue's size (>= 40 cases) is
+    --controls 10 --per-effect 3 --pairs 5 --artefacts 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+from dampertwin.design import load  # noqa: E402
+from dampertwin.discrepancy import catalogue, entry  # noqa: E402
+from dampertwin.discrepancy.hidden import accelerometer_resonance, hidden_sample, loadcell_crosstalk  # noqa: E402
+from dampertwin.io import read_meta, write_frame  # noqa: E402
+from dampertwin.lab import load_sample, run_lab  # noqa: E402
+
+DEV_KEYS = ["piston_rebound.a", "piston_rebound.F_preload", "piston_intake.a", "base_compression.a",
+            "base_compression.F_preload", "base_intake.a", "top_mount.k0", "top_mount.c0", "rod_friction.F_c"]
+
+
+def cases(args, design, cfg, rng):
+    cands = catalogue(design, cfg)
+    out = []
+    for i in range(args.controls):
+        f = {k: float(np.exp(rng.normal(0, args.dev))) for k in DEV_KEYS}
+        out.append(("control", [], {"factors": f}, None))
+    for c in cands:
+        for i in range(args.per_effect):
+            s = float(args.scale * np.exp(rng.normal(0, 0.2)))
+            vals = {k: v * s if k in {p.key for p in c.params} else v for k, v in c.typical.items()}
+            for p in c.params:  # keep inside the bounds
+                vals[p.key] = float(min(max(vals[p.key], p.lo), p.hi))
+            out.append(("single", [c.name], {"effects": {c.name: True}, "values": vals}, None))
+    names = [c.name for c in cands]
+    for i in range(args.pairs if len(cands) >= 2 else 0):
+        a, b = rng.choice(len(cands), 2, replace=False)
+        ca, cb = cands[a], cands[b]
+        out.append(("pair", [ca.name, cb.name], {"effects": {ca.name: True, cb.name: True},
+                                                 "values": {**ca.typical, **cb.typical}}, None))
+    for i in range(args.artefacts):
+        if i % 2 == 0:
+            art = ("accel", float(rng.uniform(150, 400)), float(rng.uniform(0.05, 0.12)))
+        else:
+            art = ("xtalk", float(rng.uniform(0.02, 0.05)), 0.0)
+        out.append(("artefact", [], {}, art))
+    return out, names
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--controls", type=int, default=10)
+    ap.add_argument("--per-effect", type=int, default=3)
+    ap.add_argument("--pairs", type=int, default=5)
+    ap.add_argument("--artefacts", type=int, default=5)
+    ap.add_argument("--seed", type=int, default=0, help="seeds every draw (magnitudes, deviations, lab noise)")
+    ap.add_argument("--scale", type=float, default=1.0, help="hidden magnitude / typical magnitude")
+    ap.add_argument("--dev", type=float, default=0.05, help="one-sigma log deviation of control parameters")
+    ap.add_argument("--tests", default="compliance:baseline,monosine:baseline_1.6,monosine:baseline_0.32,"
+                                        "random:baseline_1.6", help="lab records generated per case")
+    ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
+    args = ap.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    conf = ROOT / "conf"
+    cfg = entry.load_config(conf)
+    design = load(conf / "design" / "baseline.yaml")
+    base = {k: v for k, v in load_sample(conf / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    only = [tuple(x.split(":")) for x in args.tests.split(",")]
+    tests = {}
+    for t, c in only:
+        tests.setdefault(t, []).append(c)
+    work = Path(args.work or tempfile.mkdtemp(prefix="dt_bench_"))
+    work.mkdir(parents=True, exist_ok=True)
+    plan, names = cases(args, design, cfg, rng)
+    rows = []
+    t0 = time.time()
+    for k, (cell, truth, spec, art) in enumerate(plan):
+        seed = int(rng.integers(0, 2**31))
+        s = hidden_sample(base, **spec)
+        s["nominal"] = str(conf / "lab" / "nominal.yaml")
+        sp = work / f"case{k}.yaml"
+        sp.write_text(yaml.safe_dump(s))
+        data = work / f"case{k}"
+        t1 = time.time()
+        run_lab(sp, data, seed=seed, only=only, progress=False, workers=1)
+        if art is not None:
+            for f in data.glob("*/*.parquet"):
+                df = pq.read_table(f).to_pandas()
+                df = accelerometer_resonance(df, art[1], art[2]) if art[0] == "accel" else loadcell_crosstalk(df, art[1])
+                write_frame(f, df, {**read_meta(f), "artefact": list(art)})
+        t_lab = time.time() - t1
+        doc = entry.main(str(conf / "design" / "baseline.yaml"), str(data), str(work / f"out{k}"), profile="ci",
+                         seed=seed, progress=False, tests=tests)
+        rows.append({"cell": cell, "truth": truth, "verdict": doc["verdict"], "effects": doc["effects"],
+                     "group": doc["group"], "closed": doc["gap"]["closed_fraction"], "lab_s": round(t_lab, 1),
+                     "case_s": round(time.time() - t1, 1)})
+        print(json.dumps(rows[-1]), file=sys.stderr)
+    if args.work is None:
+        shutil.rmtree(work, ignore_errors=True)
+
+    def rate(sel, ok):
+        sel = [r for r in rows if sel(r)]
+        return (sum(ok(r) for r in sel) / len(sel)) if sel else None
+
+    named_true = lambda r: (r["verdict"] == "named" and r["effects"][:1] == r["truth"][:1]) or (  # noqa: E731
+        r["verdict"] == "ambiguous" and r["truth"][0] in r["group"])
+    per_effect = {n: rate(lambda r, n=n: r["cell"] == "single" and r["truth"] == [n], named_true) for n in names}
+    counts = {}
+    for r in rows:
+        counts.setdefault(r["cell"], {}).setdefault(r["verdict"], 0)
+        counts[r["cell"]][r["verdict"]] += 1
+    named_closed = [r["closed"] for r in rows if r["verdict"] == "named" and r["cell"] in ("single", "pair")]
+    out = {
+        "cases": len(rows), "counts": counts, "seed": args.seed, "scale": args.scale,
+        "control_false_named_rate": rate(lambda r: r["cell"] == "control", lambda r: r["verdict"] == "named"),
+        "single_named_rate": rate(lambda r: r["cell"] == "single", named_true),
+        "single_named_rate_per_effect": per_effect,
+        "pair_both_named_rate": rate(lambda r: r["cell"] == "pair",
+                                     lambda r: r["verdict"] == "named" and set(r["truth"]) <= set(r["effects"])),
+        "artefact_unexplained_rate": rate(lambda r: r["cell"] == "artefact", lambda r: r["verdict"] == "unexplained"),
+        "artefact_confident_wrong_rate": rate(lambda r: r["cell"] == "artefact", lambda r: r["verdict"] == "named"),
+        "median_closed_fraction_named": float(np.median(named_closed)) if named_closed else None,
+        "wall_s_per_case": round((time.time() - t0) / max(len(rows), 1), 1),
+    }
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,166 @@
+"""The command-line / stage entry of the discrepancy workflow: the only place
+that reads the measured folder and the configuration and writes
+``OUT/verdict.json``, ``OUT/design.yaml``, ``OUT/report.md`` and
+``OUT/plots/*.png``."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from ..design import ConfigTextError, DesignError, load, yaml_load_file
+from ..errors import UserError
+from ..io import read_frame, runs
+from ..protocols import load_protocol, recording_rates
+from ..variants import load_variant
+from . import features as F
+from .workflow import Problem, run, verdict_document
+
+CONFIGURATIONS = {"compliance": "damper", "curving": "damper", "monosine": "module", "random": "module",
+                  "training": None, "verification": None}
+PROFILES = ("ci", "full")
+
+
+class DiscrepancyError(UserError):
+    """Unusable input of the discrepancy workflow (the message names the file)."""
+
+
+def _conf_dir() -> Path:
+    from ..config import repo_root
+
+    try:
+        return repo_root(Path.cwd()) / "conf"
+    except FileNotFoundError:
+        return repo_root(Path(__file__).parent) / "conf"
+
+
+def load_config(conf: Path) -> dict:
+    path = conf / "discrepancy.yaml"
+    try:
+        doc = yaml_load_file(path)
+    except (ConfigTextError, FileNotFoundError) as e:
+        raise DiscrepancyError(f"{path}: {e}") from None
+    need = ("profiles", "features", "calibration_pool", "decision")
+    if not isinstance(doc, dict) or any(k not in doc for k in need):
+        raise DiscrepancyError(f"{path}: expected the keys {', '.join(need)}")
+    return doc
+
+
+def load_design(path: Path, conf: Path):
+    """The design under test; unknown keys, bad values or a missing file
+    are a DiscrepancyError naming the file."""
+    if not path.is_file():
+        raise DiscrepancyError(f"{path}: design file not found")
+    try:
+        return load(path, map_dirs=[conf / "design"])
+    except DesignError as e:
+        raise DiscrepancyError([f"{path}: invalid design"] + list(e.errors)) from None
+
+
+def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests: dict | None = None):
+    """Units of every usable record of the measured folder the profile selects.
+    Returns (units, variants by case, skipped notes)."""
+    if not measured.is_dir():
+        raise DiscrepancyError(f"{measured}: measured folder not found (expected DIR/<test>/<case>.parquet)")
+    present = {p.name: sorted(p.glob("*.parquet")) for p in sorted(measured.iterdir()) if p.is_dir()}
+    present = {k: v for k, v in present.items() if v}
+    usable = {k: v for k, v in present.items() if k in CONFIGURATIONS}
+    if not usable:
+        raise DiscrepancyError(f"{measured}: no test records; expected DIR/<test>/<case>.parquet with <test> one of "
+                               f"{', '.join(CONFIGURATIONS)} (found: {', '.join(present) or 'nothing'})")
+    want = prof["tests"] if tests is None else tests
+    maxd = prof.get("max_duration", {}) or {}
+    units, variants, notes = [], {}, []
+    lo, hi = float(design.pq_map.currents[0]), float(design.pq_map.currents[-1])
+    for test, files in usable.items():
+        sel = want.get(test, [])
+        if sel != "all":
+            files = [f for f in files if f.stem in (sel or [])]
+        if not files:
+            notes.append(f"{test}: present, not used in this profile")
+            continue
+        proto_path = conf / "test" / f"{test}.yaml"
+        proto = load_protocol(proto_path)
+        cfg_name = CONFIGURATIONS[test] or proto["configuration"]
+        for f in files:
+            df, meta = read_frame(f, test, current_range=(lo, hi), rate=recording_rates(proto))
+            case = f.stem
+            vpath = conf / "variant" / f"{case}.yaml"
+            if test in ("monosine", "random", "training", "verification") and vpath.is_file():
+                v = load_variant(vpath)
+                try:
+                    v.apply(design)
+                except (DesignError, UserError) as e:
+                    notes.append(f"{f}: variant {case} does not apply to the design ({e}); skipped")
+                    continue
+                variants[case] = v
+            for name, g in runs(df):
+                cur = float(g["current [A]"].iloc[0]) if "current [A]" in g else 1.6
+                u = F.make_unit(test, case, str(name), cfg_name, cur, g, proto.get("sensors", {}), maxd.get(test))
+                try:
+                    F.prepare(u, fcfg)
+                except ValueError as e:
+                    raise DiscrepancyError(f"{f}: {e}") from None
+                units.append(u)
+    if not units:
+        raise DiscrepancyError(f"{measured}: no record of the tests this profile uses "
+                               f"({', '.join(k for k, v in want.items() if v)}); present: {', '.join(present)}")
+    return units, variants, notes
+
+
+def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 0, progress: bool = True,
+         tests: dict | None = None) -> dict:
+    """Run the workflow and write OUT atomically. Returns the verdict document."""
+    from .report import write_report
+
+    conf = _conf_dir()
+    cfg = load_config(conf)
+    if profile not in cfg["profiles"]:
+        raise DiscrepancyError(f"{conf / 'discrepancy.yaml'}: no profile {profile!r}; expected one of "
+                               f"{', '.join(cfg['profiles'])}")
+    d = load_design(Path(design), conf)
+    prof = cfg["profiles"][profile]
+    units, variants, notes = read_units(Path(measured), d, conf, cfg["features"], prof, tests)
+    problem = Problem(units, cfg["features"], variants, progress=progress)
+    res = run(d, problem, cfg, profile, int(seed))
+    res["notes"] = notes
+    doc = verdict_document(res)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp", dir=out.parent))
+    try:
+        _dump_design(res["design"], tmp)
+        (tmp / "verdict.json").write_text(json.dumps(doc, indent=2) + "\n")
+        write_report(tmp, d, problem, res, doc, {"design": design, "measured": measured, "profile": profile,
+                                                 "seed": int(seed)})
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    # the augmented design must load from its new place, on its own
+    load(out / "design.yaml")
+    return doc
+
+
+def _dump_design(design, folder: Path) -> None:
+    """OUT/design.yaml with its P/Q map beside it (a design that loads on its own)."""
+    from ..design import write_map
+
+    rel = str(design.param(52).value)
+    name = Path(rel).name
+    write_map(folder / name, design.pq_map)
+    text = design.dumps(folder.resolve())
+    lines = text.splitlines(keepends=True)
+    out, in52 = [], False
+    for line in lines:
+        if line.startswith(("- no: ", "- 'no': ")):
+            in52 = line.split(":", 1)[1].strip() == "52"
+        if in52 and line.lstrip().startswith("value: "):
+            line = line[: line.index("value: ")] + f"value: {name}\n"
+        out.append(line)
+    (folder / "design.yaml").write_text("".join(out))

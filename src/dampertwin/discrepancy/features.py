@@ -1,0 +1,309 @@
+"""Localised features of one measured record (a "unit": test / case / run)
+and of the simulations of the same record, plus the noise level of every
+feature estimated from the measurement itself.
+
+* Sine tests (compliance, curving, mono-sine): the cycle is cut into phase
+  bins of the fitted stroke sine (stroke position x velocity sign); per
+  steady cycle the bin mean of the force (and the bin mean and RMS of the rod
+  acceleration) is a feature row. Noise = cycle-to-cycle scatter of the
+  measured bin values / sqrt(cycles), plus a bench allowance.
+* Random test: band levels [dB] of the force and rod-acceleration PSD per
+  Welch segment (segments are the bootstrap units); the measured high-band
+  floor (sensor noise) is added to the simulated PSD before comparing.
+
+Everything here is pure: frames / arrays in, arrays out (no files).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import kpi
+from ..excitation import Excitation
+from ..report import RECORD_CUTOFF
+from ..sensors import sensor_lowpass
+
+FORCE, ACC = "force [N]", "rod acceleration [m/s^2]"
+SIM_FORCE = {"damper": "rod force [N]", "module": "top mount force [N]"}
+SINE_TESTS = ("compliance", "curving", "monosine", "training")
+PSD_TESTS = ("random", "verification")
+
+
+@dataclass
+class Unit:
+    """One measured record prepared for comparison."""
+
+    test: str
+    case: str
+    run: str
+    configuration: str
+    current: float
+    t: np.ndarray
+    excitation: Excitation
+    measured: dict            # channel -> array (measured, on t)
+    sensors: dict             # documented transducer bandwidths [Hz]
+    kind: str                 # "sine" | "psd"
+    labels: list = field(default_factory=list)      # (channel, phase_or_band) per feature
+    per_cycle: np.ndarray | None = None             # measured features per cycle / segment [n_cyc, n_feat]
+    sigma: np.ndarray | None = None                 # noise level per feature (diagonal)
+    white: np.ndarray | None = None                 # whitening matrix of the unit's features
+    fold: str = "train"
+    frequency: float | None = None
+    _bins: tuple | None = None                      # (cycle index, bin index, valid mask) for sine units
+    _floor: dict | None = None                      # measured PSD floor per channel
+    _slope: dict | None = None                      # bin mean of d(signal)/dt per channel (sine units)
+
+    @property
+    def key(self) -> str:
+        return f"{self.test}/{self.case}/{self.run}"
+
+    @property
+    def n_cycles(self) -> int:
+        return 0 if self.per_cycle is None else int(self.per_cycle.shape[0])
+
+    @property
+    def channels(self) -> list[str]:
+        return [FORCE] + ([ACC] if self.configuration == "module" and ACC in self.measured else [])
+
+    def measured_features(self, idx: np.ndarray | None = None) -> np.ndarray:
+        """Measured features: mean over cycles (or over resampled cycles ``idx``)."""
+        pc = self.per_cycle if idx is None else self.per_cycle[idx]
+        return pc.mean(axis=0)
+
+
+def make_unit(test: str, case: str, run: str, configuration: str, current: float, frame, sensors: dict,
+              max_duration: float | None = None) -> Unit:
+    """A unit from one run's measured frame (``frame``: time, displacement, force[, rod acceleration])."""
+    t = frame["time [s]"].to_numpy(float)
+    if max_duration is not None and t[-1] - t[0] > max_duration:
+        keep = t <= t[0] + max_duration
+        frame = frame[keep]
+        t = t[keep]
+    x = frame["displacement [m]"].to_numpy(float)
+    ex = Excitation.from_samples(t, x, cutoff=RECORD_CUTOFF)
+    meas = {"displacement [m]": x, FORCE: frame[FORCE].to_numpy(float)}
+    if ACC in frame:
+        meas[ACC] = frame[ACC].to_numpy(float)
+    kind = "psd" if test in PSD_TESTS else "sine"
+    return Unit(test, case, run, configuration, float(current), t, ex, meas, dict(sensors or {}), kind)
+
+
+# ------------------------------------------------------------------ sine units
+def _phase_bins(u: Unit, n_bins: int, transient: int):
+    t, x = u.t, u.measured["displacement [m]"]
+    f = kpi.dominant_frequency(t, x)
+    c = kpi.harmonic(t, x, f)  # x ~ Re(c e^{i w t})
+    theta = 2 * math.pi * f * t + math.atan2(c.imag, c.real)
+    # x = |c| cos(theta): phase in (0, pi) = compression (x falling), (pi, 2 pi) = rebound
+    rel = (theta - theta[0]) / (2 * math.pi)
+    cyc = np.floor(rel + 1e-9).astype(int)  # cycles counted from the record start
+    ph = np.mod(theta, 2 * math.pi)
+    b = np.minimum((ph / (2 * math.pi) * n_bins).astype(int), n_bins - 1)
+    n_full = int(np.floor(rel[-1] + f * float(np.mean(np.diff(t))) + 1e-6))
+    valid = (cyc >= transient) & (cyc < n_full)
+    return f, cyc, b, valid
+
+
+def bin_label(k: int, n_bins: int) -> str:
+    """Phase bin k as stroke position (fraction of the amplitude) and direction."""
+    centre = (k + 0.5) / n_bins * 2 * math.pi
+    direction = "compression" if centre < math.pi else "rebound"
+    return f"{direction} x={math.cos(centre):+.2f}A"
+
+
+def _sine_matrix(u: Unit, signals: dict, n_bins: int) -> np.ndarray:
+    """Per-cycle feature rows [n_cyc, n_feat] of ``signals`` (channel -> array or [m, n] arrays)."""
+    _, cyc, b, valid = u._bins
+    cycles = np.unique(cyc[valid])
+    ci = np.searchsorted(cycles, cyc[valid])
+    idx = ci * n_bins + b[valid]
+    nc = len(cycles)
+    cnt = np.bincount(idx, minlength=nc * n_bins).reshape(nc, n_bins)
+    cnt = np.maximum(cnt, 1)
+    cols = []
+    for ch in u.channels:
+        s = signals[ch][valid]
+        mean = np.bincount(idx, weights=s, minlength=nc * n_bins).reshape(nc, n_bins) / cnt
+        cols.append(mean)
+        if ch == ACC:
+            ms = np.bincount(idx, weights=s * s, minlength=nc * n_bins).reshape(nc, n_bins) / cnt
+            cols.append(np.sqrt(np.maximum(ms, 0.0)))
+    return np.hstack(cols)
+
+
+def _sine_labels(u: Unit, n_bins: int) -> list:
+    out = []
+    for ch in u.channels:
+        name = "force" if ch == FORCE else "acceleration mean"
+        out += [(name, bin_label(k, n_bins)) for k in range(n_bins)]
+        if ch == ACC:
+            out += [("acceleration rms", bin_label(k, n_bins)) for k in range(n_bins)]
+    return out
+
+
+# ------------------------------------------------------------------ PSD units
+def _segments(u: Unit, seg_s: float):
+    fs = 1.0 / float(np.mean(np.diff(u.t)))
+    n = int(round(seg_s * fs))
+    m = len(u.t) // n
+    return fs, n, m
+
+
+def _band_levels(x: np.ndarray, fs: float, n: int, m: int, bands, floor: float | None = None,
+                 floor_band=None, return_floor: bool = False):
+    """Per-segment band PSD levels [dB] of x (Hann periodogram, segments of n samples)."""
+    seg = x[: n * m].reshape(m, n)
+    seg = seg - seg.mean(axis=1, keepdims=True)
+    w = np.hanning(n)
+    P = np.abs(np.fft.rfft(seg * w, axis=1)) ** 2 / (fs * np.sum(w * w))
+    P[:, 1:-1] *= 2
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    fl = None
+    if floor_band is not None and floor_band[1] < fs / 2:
+        fm = (f >= floor_band[0]) & (f <= floor_band[1])
+        fl = float(np.mean(P[:, fm])) if fm.any() else None
+    if return_floor:
+        return fl
+    add = floor or 0.0
+    cols = []
+    for lo, hi in bands:
+        bm = (f >= lo) & (f < hi)
+        if not bm.any():
+            cols.append(np.full(m, np.nan))
+        else:
+            cols.append(10 * np.log10(np.mean(P[:, bm], axis=1) + add + 1e-300))
+    return np.column_stack(cols)
+
+
+def _psd_bands(u: Unit, bands):
+    fs = 1.0 / float(np.mean(np.diff(u.t)))
+    return [b for b in bands if b[1] <= 0.45 * fs]
+
+
+def _psd_matrix(u: Unit, signals: dict, cfg: dict, simulated: bool) -> np.ndarray:
+    fs, n, m = _segments(u, cfg["psd_segment"])
+    bands = _psd_bands(u, cfg["psd_bands"])
+    cols = []
+    for ch in u.channels:
+        floor = u._floor.get(ch) if simulated else None
+        cols.append(_band_levels(signals[ch], fs, n, m, bands, floor=floor))
+    return np.hstack(cols)
+
+
+# ------------------------------------------------------------------ preparation
+def prepare(u: Unit, cfg: dict) -> Unit:
+    """Measured features per cycle / segment, labels and noise levels."""
+    if u.kind == "sine":
+        nb = int(cfg["phase_bins"])
+        u._bins = _phase_bins(u, nb, int(cfg["transient_cycles"]))
+        u.frequency = u._bins[0]
+        cmp_ = _compare(u, u.measured, cfg)
+        u.per_cycle = _sine_matrix(u, cmp_, nb)
+        dt = float(np.mean(np.diff(u.t)))
+        slopes = _sine_matrix(u, {ch: np.gradient(cmp_[ch], dt) for ch in u.channels}, nb).mean(axis=0)
+        u._slope, k = {}, 0
+        for ch in u.channels:
+            u._slope[ch] = slopes[k:k + nb]
+            k += nb * (2 if ch == ACC else 1)
+        u.labels = _sine_labels(u, nb)
+        if u.per_cycle.shape[0] < 2:
+            raise ValueError(f"{u.key}: fewer than 2 steady cycles; cannot estimate the cycle-to-cycle scatter")
+    else:
+        fs, n, m = _segments(u, cfg["psd_segment"])
+        if m < 3:
+            raise ValueError(f"{u.key}: record shorter than 3 PSD segments of {cfg['psd_segment']} s")
+        u._floor = {ch: _band_levels(u.measured[ch], fs, n, m, [], floor_band=cfg["psd_floor_band"], return_floor=True)
+                    for ch in u.channels}
+        u.per_cycle = _psd_matrix(u, u.measured, cfg, simulated=False)
+        bands = _psd_bands(u, cfg["psd_bands"])
+        u.labels = [("force PSD" if ch == FORCE else "acceleration PSD", f"{lo:g}-{hi:g} Hz")
+                    for ch in u.channels for lo, hi in bands]
+    u.sigma, u.white = noise(u, cfg)
+    return u
+
+
+def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
+    """Noise model of the unit's features, from the data: the cycle-to-cycle
+    (segment-to-segment) scatter of the residual measured - simulated
+    (``sim_pc``: simulated features per cycle of the design under test; the
+    measured scatter alone without it) / sqrt(n), pooled with the median of
+    the same channel (few cycles), plus a small floor; and the bench
+    nuisances as covariance: a transducer gain error (proportional to the
+    feature) and an offset per channel. Returns (sigma diagonal, whitening
+    matrix of the unit's block)."""
+    pc = u.per_cycle
+    n = pc.shape[0]
+    r = pc - sim_pc if sim_pc is not None and np.all(np.isfinite(sim_pc)) else pc
+    sd = np.std(r, axis=0, ddof=1)
+    mean = pc.mean(axis=0)
+    sig = np.zeros_like(mean)
+    fl = cfg["bench_floor"]
+    names = [lab[0] for lab in u.labels]
+    nf = len(names)
+    C = np.zeros((nf, nf))
+    for name in dict.fromkeys(names):
+        m = np.array([x == name for x in names])
+        pooled = np.sqrt(0.5 * sd[m] ** 2 + 0.5 * np.median(sd[m] ** 2))
+        scatter = pooled / math.sqrt(n)
+        idx = np.flatnonzero(m)
+        if u.kind == "psd":
+            sig[m] = np.sqrt(scatter ** 2 + float(fl["psd_db"]) ** 2)
+            gain = np.full(len(idx), float(fl["psd_offset_db"]))
+            off = np.zeros(len(idx))
+        else:
+            ch = FORCE if name == "force" else ACC
+            rms = float(np.sqrt(np.mean(u.measured[ch] ** 2)))
+            b = fl["force"] if ch == FORCE else fl["rod acceleration"]
+            sig[m] = np.sqrt(scatter ** 2 + (float(b["floor"]) * rms) ** 2)
+            gain = float(b["gain"]) * mean[m]
+            off = np.full(len(idx), float(b["offset"]) * rms if name != "acceleration rms" else 0.0)
+            # transducer delay other than documented (filter kind / order / corner): bin means shift
+            # along the signal's slope
+            if name != "acceleration rms" and u._slope is not None:
+                C[np.ix_(idx, idx)] += np.outer(*(2 * [float(cfg.get("delay_sigma", 0.0)) * u._slope[ch]]))
+        C[np.ix_(idx, idx)] += np.outer(gain, gain) + np.outer(off, off)
+    sig = np.maximum(sig, 1e-12)
+    C += np.diag(sig ** 2)
+    L = np.linalg.cholesky(C)
+    return sig, np.linalg.inv(L)
+
+
+def sim_signals(u: Unit, channels: dict, row: int) -> dict:
+    """Simulated channels of one batch row, through the documented transducer bandwidths."""
+    fs = 1.0 / float(np.mean(np.diff(u.t)))
+    n = len(u.t)
+    out = {}
+    f = channels[SIM_FORCE[u.configuration]][row][:n]
+    out[FORCE] = sensor_lowpass(f, u.sensors.get("force"), fs)
+    if ACC in u.channels:
+        out[ACC] = sensor_lowpass(channels[ACC][row][:n], u.sensors.get("acceleration"), fs)
+    return out
+
+
+def sim_features(u: Unit, signals: dict, cfg: dict) -> np.ndarray:
+    """Simulated features per cycle / segment [n_cyc, n_feat] (the same cycles as the measurement)."""
+    if any(len(s) < len(u.t) or not np.all(np.isfinite(s)) for s in signals.values()):
+        return np.full(u.per_cycle.shape, np.nan)
+    if u.kind == "sine":
+        return _sine_matrix(u, _compare(u, signals, cfg), int(cfg["phase_bins"]))
+    return _psd_matrix(u, signals, cfg, simulated=True)
+
+
+def _compare(u: Unit, signals: dict, cfg: dict) -> dict:
+    """Both sides through the same zero-phase comparison low-pass (robust to
+    transducer bandwidths other than documented)."""
+    from scipy.signal import butter, sosfiltfilt
+
+    fs = 1.0 / float(np.mean(np.diff(u.t)))
+    out = dict(signals)
+    for ch, fc in (cfg.get("compare_lowpass") or {}).items():
+        if ch in out and fc < 0.45 * fs:
+            out[ch] = sosfiltfilt(butter(2, fc, fs=fs, output="sos"), out[ch])
+    return out
+
+
+def sim_channels(u: Unit) -> list[str]:
+    return [SIM_FORCE[u.configuration]] + ([ACC] if ACC in u.channels else [])

@@ -1,0 +1,618 @@
+"""Find / separate / name / add: the discrepancy workflow on prepared units.
+
+All simulations of one step run as one ``simulate_batch`` per record (a
+population of designs), so a step costs (number of designs) x (records).
+No files are read or written here (see ``entry``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..design import Design, DesignError
+from ..simulation import simulate_batch
+from . import features as F
+
+
+# ------------------------------------------------------------------ parameters
+@dataclass
+class FitParam:
+    """A fitted parameter in normalised coordinates u in [0, 1] over its
+    bounds (logarithmic when the bounds are positive and span > 2 decades)."""
+
+    key: str
+    lo: float
+    hi: float
+    start: float
+
+    @property
+    def log(self) -> bool:
+        return self.lo > 0 and self.hi / self.lo > 100
+
+    def to_u(self, v: float) -> float:
+        v = min(max(v, self.lo), self.hi)
+        if self.log:
+            return math.log(v / self.lo) / math.log(self.hi / self.lo)
+        return (v - self.lo) / (self.hi - self.lo) if self.hi > self.lo else 0.0
+
+    def to_v(self, u: float) -> float:
+        u = min(max(u, 0.0), 1.0)
+        if self.log:
+            return self.lo * (self.hi / self.lo) ** u
+        return self.lo + u * (self.hi - self.lo)
+
+
+@dataclass
+class Candidate:
+    """An effect that may be missing: switch(es) + parameters at a typical magnitude."""
+
+    name: str                       # effect name ("a+b" for a pair)
+    effects: list
+    params: list                    # FitParam of the effect's C parameters
+    typical: dict                   # key -> typical value (C and F parameters)
+
+    def overrides(self) -> dict:
+        return {**{f"effects.{e}": True for e in self.effects}, **self.typical}
+
+
+def design_value(design: Design, key: str):
+    return design[key]
+
+
+def calibration_params(design: Design, cfg: dict) -> list[FitParam]:
+    """The calibration pool of the config: existing scalar parameters with their bounds."""
+    out = []
+    extra = cfg.get("calibration_bounds", {}) or {}
+    for key in cfg.get("calibration_pool", []):
+        try:
+            p = design.param(key)
+        except KeyError:
+            continue
+        if isinstance(p.value, tuple):
+            continue
+        b = p.bounds if p.bounds is not None else extra.get(key)
+        if b is None or isinstance(b[0], (list, tuple)):
+            continue
+        lo, hi = float(b[0]), float(b[1])
+        if not lo < hi:
+            continue
+        out.append(FitParam(key, lo, hi, float(p.value)))
+    return out
+
+
+def catalogue(design: Design, cfg: dict) -> list[Candidate]:
+    """Candidates, data-driven: every effect with ``effect_parameters`` that is
+    off in the design (fit = its C entries, magnitude = ``typical``), plus the
+    thesis effects switched off in the design (conf/discrepancy.yaml
+    ``thesis_effects``: their fit parameters)."""
+    cands: dict[str, Candidate] = {}
+    if hasattr(design, "effect_parameters"):
+        by: dict[str, list] = {}
+        for e in design.effect_parameters():
+            by.setdefault(e.effect, []).append(e)
+        for eff, entries in by.items():
+            if design.effects.get(eff, False):
+                continue
+            params = [FitParam(e.key, float(e.bounds[0]), float(e.bounds[1]), float(e.typical))
+                      for e in entries if e.type == "C" and e.bounds is not None]
+            cands[eff] = Candidate(eff, [eff], params, {e.key: float(e.typical) for e in entries})
+    for eff, spec in (cfg.get("thesis_effects") or {}).items():
+        if eff in cands or eff not in design.effects or design.effects[eff]:
+            continue
+        params, typ = [], {}
+        for key, s in ((spec or {}).get("params") or {}).items():
+            try:
+                design[key]
+            except KeyError:
+                continue  # e.g. constants.leak_gap after the effect_parameters API replaced it
+            lo, hi = (float(x) for x in s["bounds"])
+            params.append(FitParam(key, lo, hi, float(s["typical"])))
+            typ[key] = float(s["typical"])
+        cands[eff] = Candidate(eff, [eff], params, typ)
+    return list(cands.values())
+
+
+# ------------------------------------------------------------------ evaluation
+@dataclass
+class Row:
+    """Simulated features of one design: per unit, [cycles, features]."""
+
+    pcs: list
+
+    @property
+    def S(self) -> np.ndarray:
+        return np.concatenate([p.mean(axis=0) for p in self.pcs])
+
+    @property
+    def ok(self) -> bool:
+        return all(np.all(np.isfinite(p)) for p in self.pcs)
+
+
+@dataclass
+class Problem:
+    """The prepared units, the feature config and the per-case design variants."""
+
+    units: list
+    fcfg: dict
+    variant_of: dict = field(default_factory=dict)   # case -> Variant (or None)
+    progress: bool = True
+    n_sims: int = 0
+    W: np.ndarray | None = None
+    failures: list = field(default_factory=list)
+
+    @property
+    def labels(self):
+        return [(u.test, u.case, u.run, ch, ph) for u in self.units for ch, ph in u.labels]
+
+    @property
+    def sigma(self) -> np.ndarray:
+        return np.concatenate([u.sigma for u in self.units])
+
+    def set_noise(self, base: Row) -> None:
+        """Noise model from the residual scatter of the design under test (features.noise)."""
+        from scipy.linalg import block_diag
+
+        for u, pc in zip(self.units, base.pcs):
+            u.sigma, u.white = F.noise(u, self.fcfg, pc)
+        self.W = block_diag(*[u.white for u in self.units])
+
+    def measured(self, boot: list | None = None) -> np.ndarray:
+        return np.concatenate([u.measured_features(None if boot is None else boot[i]) for i, u in enumerate(self.units)])
+
+    def mask(self, fold: str | None) -> np.ndarray:
+        return np.concatenate([np.full(len(u.labels), fold is None or u.fold == fold) for u in self.units])
+
+    def n_eff(self, fold: str | None = None) -> int:
+        """Effective sample size: cycles (segments), not samples."""
+        return int(sum(u.n_cycles for u in self.units if fold is None or u.fold == fold))
+
+    def simulate(self, designs: list, label: str = "simulate", keep: bool = False):
+        """Simulated features (a Row per design; NaN for failed members);
+        with ``keep`` also the simulated signals per unit."""
+        from tqdm import tqdm
+
+        pcs, kept = [], []
+        for u in tqdm(self.units, desc=f"{label} ({len(designs)} designs)", disable=not self.progress, leave=False):
+            var = self.variant_of.get(u.case)
+            ds, bad = [], []
+            for d in designs:
+                try:
+                    ds.append(var.apply(d) if var is not None else d)
+                    bad.append(False)
+                except (DesignError, ValueError):
+                    ds.append(designs[0] if var is None else var.apply(designs[0]))
+                    bad.append(True)
+            fs = 1.0 / float(np.mean(np.diff(u.t)))
+            # one batch per pattern of effect switches (effects with states must be alike in a batch)
+            groups: dict = {}
+            for j, d in enumerate(ds):
+                groups.setdefault(tuple(sorted(d.effects.items())), []).append(j)
+            rows = [np.full(u.per_cycle.shape, np.nan) for _ in ds]
+            sig = [None] * len(ds)
+            for members in groups.values():
+                try:
+                    _, ch, status = simulate_batch([ds[j] for j in members], u.excitation, u.configuration,
+                                                   current=u.current, rate=fs, duration=float(u.t[-1] - u.t[0]),
+                                                   channels=F.sim_channels(u), max_wall_s=600.0)
+                except Exception as e:  # noqa: BLE001 - one invalid member must not lose the population
+                    self.failures.append(f"{u.key}: {type(e).__name__}: {e}")
+                    continue
+                self.n_sims += len(members)
+                for m, j in enumerate(members):
+                    if bad[j] or status[m] != 0:
+                        continue
+                    s = F.sim_signals(u, ch, m)
+                    rows[j] = F.sim_features(u, s, self.fcfg)
+                    sig[j] = s if keep else None
+            pcs.append(rows)
+            kept.append(sig)
+        out = [Row([pcs[i][j] for i in range(len(self.units))]) for j in range(len(designs))]
+        return (out, kept) if keep else out
+
+    def residual(self, row: Row, boot: list | None = None) -> np.ndarray:
+        """measured - simulated features (over the resampled cycles ``boot``)."""
+        if boot is None:
+            return self.measured() - row.S
+        return np.concatenate([u.per_cycle[b].mean(axis=0) - p[b].mean(axis=0)
+                               for u, p, b in zip(self.units, row.pcs, boot)])
+
+    def z(self, row: Row, boot: list | None = None) -> np.ndarray:
+        """Whitened residuals (noise, gain and offset nuisances of the bench accounted for)."""
+        r = self.residual(row, boot)
+        if not np.all(np.isfinite(r)):
+            return np.full_like(r, np.nan)
+        return self.W @ r
+
+    def zdiag(self, row: Row) -> np.ndarray:
+        """Residual / noise level, feature by feature (for the localised map)."""
+        return self.residual(row) / self.sigma
+
+
+def chi(z: np.ndarray, mask: np.ndarray) -> float:
+    """Sum of squared noise-scaled residuals (inf when a member failed)."""
+    v = z[..., mask]
+    return float(np.sum(v * v)) if np.all(np.isfinite(v)) else math.inf
+
+
+def mean_z2(z: np.ndarray, mask: np.ndarray) -> float:
+    n = int(np.sum(mask))
+    return chi(z, mask) / max(n, 1)
+
+
+# ------------------------------------------------------------------ fitting
+@dataclass
+class Fit:
+    name: str
+    params: list
+    values: dict
+    design: Design
+    S: Row                   # simulated features at the fit
+    overrides: dict          # all overrides applied to the base design
+    J: dict = field(default_factory=dict)   # key -> d z / d u at the fit (Broyden-updated)
+
+
+def gauss_newton(problem: Problem, base: Design, fixed: dict, params: list, mask: np.ndarray, iterations: int,
+                 step: float, label: str, S0: Row | None = None, J0: dict | None = None,
+                 prior: dict | None = None) -> Fit:
+    """Bounded Levenberg-Marquardt on the whitened features of ``mask``
+    (scipy ``lsq_linear`` per step). Jacobian columns come from ``J0`` (key
+    -> d z / d u, e.g. the sensitivity batch) or one finite-difference batch
+    at the start; later steps update them (Broyden), so an iteration costs
+    one simulation per record. ``prior`` (key -> (value, sigma in u)) keeps
+    parameters near a value (Tikhonov rows: a refit of many parameters on few
+    records must not trade miscalibration for overfitting)."""
+    from scipy.optimize import lsq_linear
+
+    def design_at(u):
+        ov = {**fixed, **{p.key: p.to_v(x) for p, x in zip(params, u)}}
+        return base.with_overrides(ov), ov
+
+    u = np.array([p.to_u(p.start) for p in params])
+    try:
+        d0, _ = design_at(u)
+    except DesignError:
+        u = np.clip(u, 0.05, 0.95)
+        d0, _ = design_at(u)
+    J0 = J0 or {}
+    fd = [i for i, p in enumerate(params) if p.key not in J0]
+    pts, hs = ([u] if S0 is None else []), []
+    for i in fd:
+        v = u.copy()
+        hs.append(step if u[i] + step <= 1.0 else -step)
+        v[i] = u[i] + hs[-1]
+        pts.append(v)
+    rows = _rows(problem, design_at, d0, pts, f"{label} start")
+    S_cur = S0 if S0 is not None else rows.pop(0)
+    z_cur = problem.z(S_cur)
+    nf = len(z_cur)
+    J = np.zeros((nf, len(params)))
+    for i, p in enumerate(params):
+        if p.key in J0:
+            J[:, i] = J0[p.key]
+    for k, i in enumerate(fd):
+        col = (problem.z(rows[k]) - z_cur) / hs[k]
+        J[:, i] = np.where(np.isfinite(col), col, 0.0)
+    prior = prior or {}
+    pc = np.array([params[i].to_u(prior[p.key][0]) if p.key in prior else 0.0 for i, p in enumerate(params)])
+    pw = np.array([1.0 / prior[p.key][1] if p.key in prior else 0.0 for p in params])
+
+    def obj(z, u):
+        return chi(z, mask) + float(np.sum((pw * (u - pc)) ** 2))
+
+    best = (obj(z_cur, u), u.copy(), S_cur, z_cur)
+    lam = 1e-2
+    for it in range(iterations):
+        if not params or not np.isfinite(best[0]):
+            break
+        u, S_cur, z_cur = best[1].copy(), best[2], best[3]
+        A = np.vstack([J[mask], np.diag(pw), math.sqrt(lam) * np.eye(len(params))])
+        bb = np.concatenate([-z_cur[mask], -pw * (u - pc), np.zeros(len(params))])
+        du = lsq_linear(A, bb, bounds=(-u - 1e-12, 1.0 - u + 1e-12)).x
+        if np.max(np.abs(du)) < 1e-4:
+            break
+        u_new = np.clip(u + du, 0.0, 1.0)
+        du = u_new - u
+        S_new = _rows(problem, design_at, d0, [u_new], f"{label} it {it + 1}")[0]
+        z_new = problem.z(S_new)
+        if np.all(np.isfinite(z_new)):  # Broyden update of the Jacobian along the step
+            J += np.outer(z_new - z_cur - J @ du, du) / float(du @ du)
+        c_new = obj(z_new, u_new)
+        if c_new < best[0]:
+            best = (c_new, u_new, S_new, z_new)
+            lam = max(lam / 3, 1e-4)
+        else:
+            lam *= 10
+    c, u, S_best, _ = best
+    d, ov = design_at(u)
+    f = Fit(label, params, {p.key: p.to_v(x) for p, x in zip(params, u)}, d, S_best, ov)
+    f.J = {p.key: J[:, i] for i, p in enumerate(params)}
+    return f
+
+
+def _rows(problem: Problem, design_at, d0, pts, label) -> list:
+    designs, ok = [], []
+    for v in pts:
+        try:
+            designs.append(design_at(v)[0])
+            ok.append(True)
+        except DesignError:
+            designs.append(d0)
+            ok.append(False)
+    if not designs:
+        return []
+    S = problem.simulate(designs, label=label)
+    return [r if o else _nan_row(r) for r, o in zip(S, ok)]
+
+
+def sensitivity(problem: Problem, base: Design, params: list, step: float, label: str):
+    """Simulated features of the base and of each parameter stepped (one batch)."""
+    designs, ok = [base], [True]
+    hs = []
+    for p in params:
+        u = p.to_u(p.start)
+        h = step if u + step <= 1.0 else -step
+        hs.append(h)
+        try:
+            designs.append(base.with_overrides({p.key: p.to_v(u + h)}))
+            ok.append(True)
+        except DesignError:
+            designs.append(base)
+            ok.append(False)
+    S = problem.simulate(designs, label=label)
+    return [r if o else _nan_row(r) for r, o in zip(S, ok)], np.array(hs)
+
+
+def _nan_row(r: Row) -> Row:
+    return Row([np.full_like(p, np.nan) for p in r.pcs])
+
+
+# ------------------------------------------------------------------ the workflow
+def assign_folds(units: list) -> None:
+    """Training / held-out records: alternate over the records in test order,
+    so held-out data are other velocities / currents / cases / tests than
+    the fitted ones. A single record is both (said in the report)."""
+    for i, u in enumerate(units):
+        u.fold = "train" if i % 2 == 0 else "heldout"
+    if len(units) == 1:
+        units[0].fold = "train"
+
+
+def _gap(z, mask) -> float:
+    """RMS noise-scaled residual of the features in ``mask``."""
+    return math.sqrt(mean_z2(z, mask)) if np.isfinite(mean_z2(z, mask)) else math.inf
+
+
+def _where(problem: Problem, z: np.ndarray, dcfg: dict) -> list:
+    """Bins / bands whose |residual| / noise exceeds ``where_z``: test, case
+    (the file's case), phase_or_band (the run, when the file holds several,
+    the channel and the phase bin or band), excess (|residual| / noise)."""
+    n_runs: dict = {}
+    for u in problem.units:
+        n_runs[(u.test, u.case)] = n_runs.get((u.test, u.case), 0) + 1
+    out = []
+    for (test, case, run, ch, ph), v in zip(problem.labels, z):
+        if np.isfinite(v) and abs(v) >= float(dcfg["where_z"]):
+            where = f"{ch}: {ph}" if n_runs[(test, case)] == 1 else f"{run} {ch}: {ph}"
+            out.append({"test": test, "case": case, "phase_or_band": where, "excess": round(float(abs(v)), 2)})
+    out.sort(key=lambda r: -r["excess"])
+    return out[: int(dcfg["where_max"])]
+
+
+def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) -> dict:
+    """The whole workflow on prepared units. Returns the verdict document
+    plus everything the report needs (designs, features, fits)."""
+    prof = cfg["profiles"][profile]
+    dcfg = cfg["decision"]
+    step = float(dcfg["step"])
+    units = problem.units
+    if len(units) > 1:
+        assign_folds(units)
+    train, held = problem.mask("train"), problem.mask("heldout")
+    if not held.any():
+        held = train
+    allm = problem.mask(None)
+    M = problem.measured()
+    log: list[str] = []
+
+    # 1. Find ----------------------------------------------------------------
+    pool = calibration_params(design, cfg)
+    S_sens, hs = sensitivity(problem, design, pool, step, "find + sensitivities")
+    S0 = S_sens[0]
+    if not S0.ok:
+        raise RuntimeError("the design under test cannot be simulated on the measured records")
+    problem.set_noise(S0)
+    z0 = problem.z(S0)
+    if not np.all(np.isfinite(z0)):
+        raise RuntimeError("the design under test cannot be simulated on the measured records")
+    mz0 = mean_z2(z0, allm)
+    where = _where(problem, problem.zdiag(S0), dcfg)
+    res = {"z0": z0, "S0": S0, "where": where, "log": log, "fits": {}, "candidates": [], "cal": None,
+           "pool": pool, "train": train, "heldout": held}
+    log.append(f"design under test: mean squared noise-scaled residual {mz0:.2f} over {int(allm.sum())} features "
+               f"({problem.n_eff()} cycles / segments); threshold {dcfg['disagree_mean_z2']}")
+    gap_before = _gap(z0, held)
+
+    def finish(verdict, effects, group, final_design, S_final, overrides):
+        zf = problem.z(S_final)
+        gb, ga = gap_before, _gap(zf, held)
+        nb, na = chi(z0, held), chi(zf, held)
+        nh = int(held.sum())
+        closed = 0.0 if nb <= nh else float(min(1.0, (nb - na) / (nb - nh)))
+        res.update(verdict=verdict, effects=effects, group=group, design=final_design, S_final=S_final,
+                   z_final=zf, overrides=overrides,
+                   gap={"before": round(gb, 4), "after": round(ga, 4), "closed_fraction": round(closed, 4)})
+        return res
+
+    if mz0 <= float(dcfg["disagree_mean_z2"]):
+        log.append("no disagreement beyond noise and bench error: verdict none")
+        return finish("none", [], [], design, S0, {})
+
+    # 2. Separate miscalibration ------------------------------------------------
+    Jc = np.zeros((len(M), len(pool)))
+    for i in range(len(pool)):
+        col = (problem.z(S_sens[i + 1]) - z0) / hs[i]
+        Jc[:, i] = np.where(np.isfinite(col), col, 0.0)
+    r = z0[train]
+    gain = np.array([(Jc[train, i] @ r) ** 2 / max(Jc[train, i] @ Jc[train, i], 1e-300) for i in range(len(pool))])
+    order = [i for i in np.argsort(-gain) if gain[i] > 0][: int(prof["calibration"]["max_params"])]
+    sel = [pool[i] for i in order]
+    ps = float(dcfg.get("prior_sigma", 0.1))
+    prior = {p.key: (p.start, ps) for p in sel}  # the design's own values
+    log.append("calibration refit of " + ", ".join(p.key for p in sel) + " (largest sensitivity along the residual)")
+    cal = gauss_newton(problem, design, {}, sel, train, int(prof["calibration"]["iterations"]), step, "calibration refit",
+                       S0=S0, J0={pool[i].key: Jc[:, i] for i in order}, prior=prior)
+    z_cal = problem.z(cal.S)
+    res["cal"] = cal
+    mz_cal_h, mz_cal_all = mean_z2(z_cal, held), mean_z2(z_cal, allm)
+    log.append(f"after the calibration refit: mean z^2 held-out {mz_cal_h:.2f}, all {mz_cal_all:.2f}")
+    if mz_cal_h <= float(dcfg["ok_mean_z2"]) and mz_cal_all <= float(dcfg["ok_mean_z2"]):
+        log.append("the calibration refit explains the data: calibration only, verdict none")
+        return finish("none", [], [], cal.design, cal.S, cal.values)
+
+    # 3. Name -------------------------------------------------------------------
+    cands = catalogue(design, cfg)
+    if not cands:
+        log.append("no candidate effect (every library effect is on in the design): verdict unexplained")
+        return finish("unexplained", [], [], design, S0, {})
+    sig_designs, okc = [], []
+    for c in cands:
+        try:
+            sig_designs.append(cal.design.with_overrides(c.overrides()))
+            okc.append(True)
+        except DesignError as e:
+            log.append(f"candidate {c.name}: cannot be switched on ({e}); skipped")
+            sig_designs.append(cal.design)
+            okc.append(False)
+    S_sig = [r if o else _nan_row(r) for r, o in zip(problem.simulate(sig_designs, label="signatures"), okc)]
+    Jsel = Jc[:, order] if order else np.zeros((len(M), 0))
+    Q = np.linalg.qr(Jsel[train])[0] if Jsel.shape[1] else np.zeros((int(train.sum()), 0))
+    rz = z_cal[train] - Q @ (Q.T @ z_cal[train])
+    ranking = []
+    for c, ok, s_row in zip(cands, okc, S_sig):
+        zs = problem.z(s_row)
+        if not ok or not np.all(np.isfinite(zs)):
+            ranking.append((c, 0.0, None))
+            continue
+        s = (zs - z_cal)[train]
+        s = s - Q @ (Q.T @ s)
+        ss, sr = float(s @ s), float(s @ rz)
+        # z + a s: the effect explains the residual when a > 0 reduces it
+        expl = (sr * sr / ss) / max(float(rz @ rz), 1e-300) if ss > 0 and sr < 0 else 0.0
+        ranking.append((c, expl, zs))
+    ranking.sort(key=lambda x: -x[1])
+    log.append("signature match (share of the training residual a candidate's signature explains): "
+               + ", ".join(f"{c.name} {e:.2f}" for c, e, _ in ranking))
+    top = [c for c, e, _ in ranking if e > 0][: int(prof["candidates"]["refit_top"])]
+    fits: dict[str, Fit] = {}
+    cal_start = [FitParam(p.key, p.lo, p.hi, cal.values[p.key]) for p in sel]
+    its = int(prof["candidates"]["iterations"])
+    n_tr = max(problem.n_eff("train"), 2)
+    for c in top:
+        # (a) the effect alone on the design, (b) the effect with the calibration parameters (prior
+        # at the design's values); the one with the lower penalised training chi^2 is kept
+        fa = gauss_newton(problem, design, c.overrides(), c.params, train, its, step, f"refit {c.name}")
+        fb = gauss_newton(problem, design, c.overrides(), c.params + cal_start, train, its, step,
+                          f"refit {c.name} + calibration", J0={**cal.J, **fa.J}, prior=prior)
+        ca = chi(problem.z(fa.S), train) + len(c.params) * math.log(n_tr)
+        cb = chi(problem.z(fb.S), train) + (len(c.params) + len(cal_start)) * math.log(n_tr)
+        fits[c.name] = fa if ca <= cb else fb
+    # pairs of the best candidates
+    n_pairs = int(prof["candidates"].get("pairs", 0))
+    pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]][:n_pairs]
+    for a, b in pairs:
+        pc = Candidate(f"{a.name}+{b.name}", a.effects + b.effects, a.params + b.params, {**a.typical, **b.typical})
+        start = [FitParam(p.key, p.lo, p.hi, fits[a.name].values.get(p.key, fits[b.name].values.get(p.key, p.start)))
+                 for p in pc.params]
+        J0 = {**cal.J, **{k: v for n in (a.name, b.name) for k, v in fits[n].J.items() if k not in cal.J}}
+        fits[pc.name] = gauss_newton(problem, design, pc.overrides(), start + cal_start, train, its, step,
+                                     f"refit {pc.name}", J0=J0, prior=prior)
+        top.append(pc)
+    res["fits"] = fits
+
+    # 4. Decide on held-out data -----------------------------------------------------
+    n_eff = max(problem.n_eff("train"), 2)
+    # reference: the better of the design under test and its calibration refit on held-out data
+    ref = cal if chi(z_cal, held) <= chi(z0, held) else Fit("design under test", [], {}, design, S0, {})
+    chi_cal_h = chi(problem.z(ref.S), held)
+    nh = int(held.sum())
+    stats = {}
+    for c in top:
+        f = fits[c.name]
+        zf = problem.z(f.S)
+        k = max(len(c.params), len(c.effects))
+        pen = k * math.log(n_eff)
+        ch_ = chi(zf, held)
+        closed = (chi_cal_h - ch_) / max(chi_cal_h - nh, 1e-9)
+        stats[c.name] = {"gain": chi_cal_h - ch_ - pen, "closed": closed, "penalty": pen, "k": k, "cand": c}
+    # a pair is eligible only when each of its effects alone gains on held-out data (no free rider)
+    for n in list(stats):
+        if "+" in n and not all(stats.get(m, {}).get("gain", -1.0) > 0 for m in n.split("+")):
+            stats[n]["eligible"] = False
+            log.append(f"{n}: not eligible (an effect of the pair does not gain on held-out data alone)")
+    rng = np.random.default_rng(seed)
+    B = int(prof["bootstrap"])
+    names = [n for n in stats if stats[n].get("eligible", True)]
+    wins = dict.fromkeys(names, 0)
+    for _ in range(B):
+        boot = [rng.integers(0, u.n_cycles, u.n_cycles) for u in units]
+        cb = chi(problem.z(ref.S, boot), held)
+        g = {n: cb - chi(problem.z(fits[n].S, boot), held) - stats[n]["penalty"] for n in names}
+        if g:
+            bn = max(g, key=g.get)
+            if g[bn] > 0:
+                wins[bn] += 1
+    for n in stats:
+        stats[n]["share"] = wins.get(n, 0) / max(B, 1)
+    res["stats"] = stats
+    for n, st in stats.items():
+        log.append(f"{n}: held-out chi2 gain {st['gain']:.1f} after a penalty of {st['penalty']:.1f} "
+                   f"({st['k']} parameter(s) x ln {n_eff} cycles), closes {100 * min(st['closed'], 1.0):.0f} % of the "
+                   f"held-out gap left by the {'calibration refit' if ref is cal else 'design under test'}, wins {100 * st['share']:.0f} % of {B} cycle bootstraps")
+    viable = [n for n in names if stats[n]["gain"] > 0 and stats[n]["closed"] >= float(dcfg["min_closed"])]
+    cand_rows = []
+    for c, e, _ in ranking:
+        f = fits.get(c.name)
+        cand_rows.append({"effect": c.name, "score": round(float(e), 4), "heldout_gap_before": round(gap_before, 4),
+                          "heldout_gap_after": None if f is None else round(_gap(problem.z(f.S), held), 4),
+                          "parameters": {k: float(v) for k, v in (f.values if f else c.typical).items()
+                                         if not any(k == p.key for p in sel)}})
+    for c in top:
+        if "+" in c.name:
+            f = fits[c.name]
+            cand_rows.append({"effect": c.name, "score": round(float(stats[c.name]["share"]), 4),
+                              "heldout_gap_before": round(gap_before, 4),
+                              "heldout_gap_after": round(_gap(problem.z(f.S), held), 4),
+                              "parameters": {k: float(v) for k, v in f.values.items()
+                                             if not any(k == p.key for p in sel)}})
+    res["candidates"] = cand_rows
+    if not viable:
+        log.append(f"no candidate closes >= {100 * float(dcfg['min_closed']):.0f} % of the held-out gap with a "
+                   "positive penalised gain: verdict unexplained")
+        return finish("unexplained", [], [], design, S0, {})
+    best = max(viable, key=lambda n: stats[n]["gain"])
+    order_v = sorted(viable, key=lambda n: -stats[n]["gain"])
+    group = [n for n in order_v if stats[n]["share"] >= float(dcfg["group_share"]) or n == best]
+    f = fits[best]
+    effs = stats[best]["cand"].effects
+    if stats[best]["share"] >= float(dcfg["stable"]) or (len(group) == 1 and stats[best]["share"] >= 0.5):
+        log.append(f"named: {' + '.join(effs)}")
+        return finish("named", list(effs), [], f.design, f.S, f.values)
+    if len(group) >= 2:
+        flat = list(dict.fromkeys(e for n in group for e in stats[n]["cand"].effects))
+        sep = cfg.get("separating_tests", {}) or {}
+        tests = sorted({sep.get(e, sep.get("default", "curving")) for e in flat})
+        res["separating_tests"] = tests
+        log.append(f"ambiguous between {', '.join(group)}: the bootstrap over cycles does not settle it; "
+                   f"a {' or '.join(tests)} record would separate them")
+        return finish("ambiguous", list(effs), flat, f.design, f.S, f.values)
+    log.append(f"{best} is not stable over the cycle bootstrap ({100 * stats[best]['share']:.0f} %): verdict unexplained")
+    return finish("unexplained", [], [], design, S0, {})
+
+
+def verdict_document(res: dict) -> dict:
+    """``OUT/verdict.json`` (issue 11 interface, exactly these keys)."""
+    return {"verdict": res["verdict"], "effects": list(res["effects"]), "group": list(res["group"]),
+            "candidates": res["candidates"], "gap": res["gap"], "where": res["where"], "design": "design.yaml"}

@@ -1,0 +1,20 @@
+"""DVC stage `discrepancy` (issue 11): the discrepancy workflow on the
+approach-1 calibrated baseline design (results/approach1/designs/
+baseline_1.6.yaml, written by assemble) and the measured folder (params.yaml
+`measured`) -> results/discrepancy/ (verdict.json, design.yaml, report.md,
+plots/). The profile (params.yaml `profile`) sets the workflow's budget
+(conf/discrepancy.yaml); the seed is conf/config.yaml `seed`."""
+
+from _common import OUT, ROOT, config, measured_dir, params, stage
+from dampertwin.discrepancy.entry import main as discrepancy
+
+
+def main() -> None:
+    doc = discrepancy(str(OUT / "designs" / "baseline_1.6.yaml"), str(measured_dir()), str(ROOT / "results" / "discrepancy"),
+                      profile=params()["profile"], seed=int(config().seed))
+    print(f"discrepancy: verdict {doc['verdict']} {', '.join(doc['effects'])}; held-out gap "
+          f"{doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g}")
+
+
+if __name__ == "__main__":
+    stage(main, "discrepancy")

@@ -1,0 +1,135 @@
+"""Discrepancy workflow (issue 11) on SYNTHETIC lab data with hidden effects:
+a control says `none`, a clearly isolable hidden effect (piston leakage at a
+large gap) is named, an artefact outside the library (load-cell crosstalk)
+is `unexplained`, the augmented design loads and round-trips, bad input
+exits 2 naming the file. CI budget: the tests use compliance + two
+mono-sine cases (no random record) and one lab generation per sample."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+import yaml
+
+from dampertwin.cli import main as cli
+from dampertwin.design import load, loads
+from dampertwin.discrepancy import entry
+from dampertwin.discrepancy.hidden import hidden_sample, loadcell_crosstalk
+from dampertwin.io import read_meta, write_frame
+from dampertwin.lab import load_sample, run_lab
+
+ROOT = Path(__file__).resolve().parents[1]
+DESIGN = ROOT / "conf" / "design" / "baseline.yaml"
+ONLY = [("compliance", "baseline"), ("monosine", "baseline_1.6"), ("monosine", "baseline_0.32")]
+TESTS = {"compliance": ["baseline"], "monosine": ["baseline_1.6", "baseline_0.32"]}
+KEYS = {"verdict", "effects", "group", "candidates", "gap", "where", "design"}
+
+
+def _lab(tmp: Path, name: str, seed: int, **spec) -> Path:
+    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    s = hidden_sample(base, **spec)
+    s["nominal"] = str(ROOT / "conf" / "lab" / "nominal.yaml")
+    p = tmp / f"{name}.yaml"
+    p.write_text(yaml.safe_dump(s))
+    out = tmp / name
+    run_lab(p, out, seed=seed, only=ONLY, progress=False, workers=1)
+    return out
+
+
+@pytest.fixture(scope="module")
+def control(tmp_path_factory) -> Path:
+    """The nominal part (no deviations, no hidden effect) on the shipped lab's benches."""
+    return _lab(tmp_path_factory.mktemp("lab"), "control", 11)
+
+
+@pytest.fixture(scope="module")
+def leak(tmp_path_factory) -> Path:
+    """Piston leakage at a large (worn-band) gap, otherwise nominal."""
+    return _lab(tmp_path_factory.mktemp("lab"), "leak", 12, effects={"piston_leakage": True},
+                values={_leak_key(): 6e-5})
+
+
+def _leak_key() -> str:
+    """The leakage gap's key: ``piston_leakage.gap`` with the effect-parameter API, else the constant."""
+    d = load(ROOT / "conf" / "lab" / "nominal.yaml")
+    if hasattr(d, "effect_parameters") and any(e.key == "piston_leakage.gap" for e in d.effect_parameters()):
+        return "piston_leakage.gap"
+    return "constants.leak_gap"
+
+
+def _run(measured: Path, out: Path, seed: int = 0) -> dict:
+    doc = entry.main(str(DESIGN), str(measured), str(out), profile="ci", seed=seed, progress=False, tests=TESTS)
+    assert json.loads((out / "verdict.json").read_text()) == doc
+    assert set(doc) == KEYS
+    assert (out / "report.md").is_file() and list((out / "plots").glob("*.png"))
+    return doc
+
+
+def test_control_says_none_and_design_round_trips(control, tmp_path):
+    doc = _run(control, tmp_path / "out")
+    assert doc["verdict"] == "none", doc
+    assert doc["effects"] == [] and doc["design"] == "design.yaml"
+    d = load(tmp_path / "out" / "design.yaml", map_dirs=[ROOT / "conf" / "design"])
+    again = loads(d.dumps(), base_dir=str(ROOT / "conf" / "design"))
+    assert again.hash() == d.hash()
+    assert not d.effects["piston_leakage"]
+
+
+def test_hidden_leakage_is_named(leak, tmp_path):
+    doc = _run(leak, tmp_path / "out", seed=3)
+    assert doc["verdict"] == "named", doc
+    assert doc["effects"][0] == "piston_leakage"
+    assert doc["gap"]["closed_fraction"] >= 0.5
+    assert doc["where"] and all(set(w) == {"test", "case", "phase_or_band", "excess"} for w in doc["where"])
+    cand = next(c for c in doc["candidates"] if c["effect"] == "piston_leakage")
+    gap = next(v for k, v in cand["parameters"].items() if "gap" in k)
+    assert 2.5e-5 < gap < 1.2e-4  # the hidden 60 um, within what the records can tell
+    d = load(tmp_path / "out" / "design.yaml", map_dirs=[ROOT / "conf" / "design"])
+    assert d.effects["piston_leakage"]
+    assert d.hash() == loads(d.dumps(), base_dir=str(ROOT / "conf" / "design")).hash()
+
+
+def test_out_of_library_artefact_is_unexplained(control, tmp_path):
+    """Load-cell crosstalk from the stroke channel: no library effect has this signature."""
+    art = tmp_path / "artefact"
+    shutil.copytree(control, art)
+    for f in art.glob("*/*.parquet"):
+        df = pq.read_table(f).to_pandas()
+        write_frame(f, loadcell_crosstalk(df, 0.03), {**read_meta(f), "artefact": "load-cell crosstalk 3 %"})
+    doc = _run(art, tmp_path / "out")
+    assert doc["verdict"] == "unexplained", doc
+    assert doc["effects"] == []
+
+
+def _exit(argv, capsys):
+    code = cli(argv)
+    return code, capsys.readouterr().err
+
+
+def test_bad_input_exits_2_naming_the_file(tmp_path, capsys, control):
+    out = str(tmp_path / "out")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    code, err = _exit(["discrepancy", "--design", str(DESIGN), "--measured", str(empty), "--out", out], capsys)
+    assert code == 2 and str(empty) in err and "no test records" in err
+    bad_design = tmp_path / "bad.yaml"
+    text = DESIGN.read_text() + "\nnot_a_key: 1\n"
+    bad_design.write_text(text)
+    (tmp_path / "active_valve_baseline.csv").write_text((DESIGN.parent / "active_valve_baseline.csv").read_text())
+    code, err = _exit(["discrepancy", "--design", str(bad_design), "--measured", str(control), "--out", out], capsys)
+    assert code == 2 and str(bad_design) in err
+    broken = tmp_path / "broken"
+    (broken / "monosine").mkdir(parents=True)
+    (broken / "monosine" / "baseline_1.6.parquet").write_bytes(b"not a parquet file")
+    code, err = _exit(["discrepancy", "--design", str(DESIGN), "--measured", str(broken), "--out", out], capsys)
+    assert code == 2 and "baseline_1.6.parquet" in err
+    missing = tmp_path / "nope.yaml"
+    code, err = _exit(["discrepancy", "--design", str(missing), "--measured", str(control), "--out", out], capsys)
+    assert code == 2 and str(missing) in err
+    assert not (tmp_path / "out").exists()
+    assert np.isfinite(2.0)
