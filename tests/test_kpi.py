@@ -272,3 +272,19 @@ def test_sensor_lowpass_gain_matches_butterworth():
         assert gain == pytest.approx(1 / math.sqrt(1 + r**4), rel=2e-3)
     x = np.ones(100)
     assert np.array_equal(sensor_lowpass(x, None, fs), x)
+
+
+def test_flag_table_7_marks_only_cells_above_the_thresholds():
+    """Tables 7.1 / 7.2 flag like 6.5 / 6.6 (the ci approach-2 table printed
+    +32.5 % / -33.7 % rows with no warning)."""
+    t71 = kpi.table_7_1([
+        {"no": 1, "current": 1.6, "sim_rebound": 8.6, "meas_rebound": 8.4, "sim_compression": -11.2, "meas_compression": -13.1},
+        {"no": 2, "current": 0.32, "sim_rebound": 3.2, "meas_rebound": 4.8, "sim_compression": -4.3, "meas_compression": -6.4}])
+    flags = kpi.flag_table_7(t71, "7.1", 25.0, 1.5, "; note")
+    assert [(f["no."], f["column"]) for f in flags] == [(2, "Rebound difference [%]"), (2, "Compression difference [%]")]
+    assert flags[0]["diff"] == pytest.approx(100 * (4.8 - 3.2) / 4.8) and flags[0]["cause"].endswith("; note")
+    md = kpi.flagged_markdown(t71, flags)
+    assert md.count("[!1]") == 2 and "[!2]" in md and "[!3]" not in md
+    t72 = kpi.table_7_2([{"no": 1, "current": 1.6, "sim_200": -21.4, "meas_200": -21.3, "sim_300": -17.6,
+                          "meas_300": -15.0}])
+    assert [f["column"] for f in kpi.flag_table_7(t72, "7.2", 25.0, 1.5)] == ["300 Hz difference [dB]"]

@@ -308,6 +308,32 @@ def flag_table_6_6(tab: pd.DataFrame, threshold_db: float) -> list[dict]:
     return flags
 
 
+def flag_table_7(tab: pd.DataFrame, table: str, threshold_pct: float, threshold_db: float,
+                 note: str = "") -> list[dict]:
+    """Cells of a table 7.1 (``Difference [%]`` columns, |diff| >
+    ``threshold_pct``) or 7.2 (``Difference [dB]``, > ``threshold_db``), in
+    the record format of :func:`flag_table_6_5` (case ``baseline``). Only the
+    peaks and levels are at hand here, so the cause is stated as unexplained,
+    followed by ``note`` (e.g. the GA budget of the profile)."""
+    flags = []
+    for _, t in tab.iterrows():
+        for col in tab.columns:
+            low = col.lower()
+            if low.endswith("difference [%]"):
+                thr = threshold_pct
+            elif low.endswith("difference [db]"):
+                thr = threshold_db
+            else:
+                continue
+            d = float(t[col])
+            if abs(d) > thr:
+                flags.append({"table": table, "no.": int(t["no."]), "case": "baseline",
+                              "current [A]": float(t["Active valve current [A]"]), "column": col, "diff": d,
+                              "threshold": thr,
+                              "cause": "model or calibration difference (unexplained from the peaks / levels)" + note})
+    return flags
+
+
 def flagged_markdown(tab: pd.DataFrame, flags: list[dict], digits: int = 1) -> str:
     """:func:`to_markdown` with each flagged cell marked ``[!n]`` and a
     numbered footnote per flag (threshold, likely cause)."""
