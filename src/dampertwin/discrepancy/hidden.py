@@ -14,8 +14,8 @@ from scipy import signal
 
 def hidden_sample(base: dict, *, effects: dict | None = None, values: dict | None = None,
                   factors: dict | None = None, keep_deviations: bool = False) -> dict:
-    """A lab sample (conf/lab/sample.yaml format) hiding ``effects`` (name ->
-    True) with ``values`` (effect parameters, e.g. {"constants.leak_gap": 6e-5});
+    """A lab sample description (the shipped hidden sample's format) hiding ``effects`` (name ->
+    True) with ``values`` (effect parameters, e.g. {"piston_leakage.gap": 6e-5});
     the part's deviations of ``base`` are kept only with ``keep_deviations``
     (else the part is nominal plus ``factors``); the benches are ``base``'s."""
     s = copy.deepcopy(base)
