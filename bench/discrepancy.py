@@ -76,6 +76,30 @@ def cases(args, design, cfg, rng):
     return out, names
 
 
+def one_case(it: dict) -> dict:
+    """Lab records of one hidden-effect case (SYNTHETIC), then the workflow from the nominal design."""
+    conf, work, k = Path(it["conf"]), Path(it["work"]), it["k"]
+    s = hidden_sample(it["base"], **it["spec"])
+    s["nominal"] = str(conf / "lab" / "nominal.yaml")
+    sp = work / f"case{k}.yaml"
+    sp.write_text(yaml.safe_dump(s))
+    data = work / f"case{k}"
+    t1 = time.time()
+    run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=1)
+    art = it["art"]
+    if art is not None:
+        for f in data.glob("*/*.parquet"):
+            df = pq.read_table(f).to_pandas()
+            df = accelerometer_resonance(df, art[1], art[2]) if art[0] == "accel" else loadcell_crosstalk(df, art[1])
+            write_frame(f, df, {**read_meta(f), "artefact": list(art)})
+    t_lab = time.time() - t1
+    doc = entry.main(str(conf / "design" / "baseline.yaml"), str(data), str(work / f"out{k}"), profile="ci",
+                     seed=it["seed"], progress=False, tests=it["tests"])
+    return {"cell": it["cell"], "truth": it["truth"], "verdict": doc["verdict"], "effects": doc["effects"],
+            "group": doc["group"], "closed": doc["gap"]["closed_fraction"], "lab_s": round(t_lab, 1),
+            "case_s": round(time.time() - t1, 1)}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--controls", type=int, default=10)
@@ -85,9 +109,13 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seeds every draw (magnitudes, deviations, lab noise)")
     ap.add_argument("--scale", type=float, default=1.0, help="hidden magnitude / typical magnitude")
     ap.add_argument("--dev", type=float, default=0.05, help="one-sigma log deviation of control parameters")
-    ap.add_argument("--tests", default="compliance:baseline,monosine:baseline_1.6,monosine:baseline_0.32,"
-                                        "random:baseline_1.6", help="lab records generated per case")
+    ap.add_argument("--tests", default="flowbench:piston_rebound,flowbench:piston_intake,flowbench:base_compression,"
+                                        "flowbench:base_intake,compliance:baseline,monosine:baseline_1.6,"
+                                        "monosine:baseline_0.32,random:baseline_1.6,curving:baseline",
+                    help="lab records generated per case (the ci profile's tests)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
+    ap.add_argument("--scheduler", default=None,
+                    help="Dask scheduler address: cases run as tasks on the cluster (work folder shared)")
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     conf = ROOT / "conf"
@@ -101,29 +129,21 @@ def main(argv=None) -> int:
     work = Path(args.work or tempfile.mkdtemp(prefix="dt_bench_"))
     work.mkdir(parents=True, exist_ok=True)
     plan, names = cases(args, design, cfg, rng)
-    rows = []
+    items = [{"k": k, "cell": cell, "truth": truth, "spec": spec, "art": art, "seed": int(rng.integers(0, 2**31)),
+              "base": base, "conf": str(conf), "work": str(work), "only": only, "tests": tests}
+             for k, (cell, truth, spec, art) in enumerate(plan)]
     t0 = time.time()
-    for k, (cell, truth, spec, art) in enumerate(plan):
-        seed = int(rng.integers(0, 2**31))
-        s = hidden_sample(base, **spec)
-        s["nominal"] = str(conf / "lab" / "nominal.yaml")
-        sp = work / f"case{k}.yaml"
-        sp.write_text(yaml.safe_dump(s))
-        data = work / f"case{k}"
-        t1 = time.time()
-        run_lab(sp, data, seed=seed, only=only, progress=False, workers=1)
-        if art is not None:
-            for f in data.glob("*/*.parquet"):
-                df = pq.read_table(f).to_pandas()
-                df = accelerometer_resonance(df, art[1], art[2]) if art[0] == "accel" else loadcell_crosstalk(df, art[1])
-                write_frame(f, df, {**read_meta(f), "artefact": list(art)})
-        t_lab = time.time() - t1
-        doc = entry.main(str(conf / "design" / "baseline.yaml"), str(data), str(work / f"out{k}"), profile="ci",
-                         seed=seed, progress=False, tests=tests)
-        rows.append({"cell": cell, "truth": truth, "verdict": doc["verdict"], "effects": doc["effects"],
-                     "group": doc["group"], "closed": doc["gap"]["closed_fraction"], "lab_s": round(t_lab, 1),
-                     "case_s": round(time.time() - t1, 1)})
-        print(json.dumps(rows[-1]), file=sys.stderr)
+    if args.scheduler:  # one case per task on the Dask cluster (same function as locally)
+        from dampertwin.parallel import DaskMap
+
+        rows = [r for r, _ in DaskMap(args.scheduler)(one_case, items)]
+        for r in rows:
+            print(json.dumps(r), file=sys.stderr)
+    else:
+        rows = []
+        for it in items:
+            rows.append(one_case(it))
+            print(json.dumps(rows[-1]), file=sys.stderr)
     if args.work is None:
         shutil.rmtree(work, ignore_errors=True)
 

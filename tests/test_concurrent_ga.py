@@ -125,6 +125,6 @@ def test_dask_scheduler_runs_the_same_code_path():
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc:
         sc = BatchScorer(scorer(), 5, scheduler=lc.scheduler_address, chunks=3)
         on_cluster = run_concurrent(GROUPS, sc, s, seed=6, progress=False)
-        sc._client.close()
+        sc._map.close()
     local = run_concurrent(GROUPS, BatchScorer(scorer(), 5), s, seed=6, progress=False)
     assert on_cluster.best == local.best and on_cluster.best_objective == local.best_objective

@@ -133,3 +133,103 @@ def test_bad_input_exits_2_naming_the_file(tmp_path, capsys, control):
     assert code == 2 and str(missing) in err
     assert not (tmp_path / "out").exists()
     assert np.isfinite(2.0)
+
+
+def test_low_velocity_curving_runs_filter_noise_and_split():
+    """ci curving runs: the run filter keeps the low-velocity runs at the
+    listed currents; a run with one steady cycle (the first is a fade-in)
+    gets a finite batch-means noise level near the sensor noise; a
+    multi-run record is split as a checkerboard over velocity x current."""
+    from dampertwin.discrepancy import features as F
+    from dampertwin.discrepancy.workflow import assign_folds
+
+    cfg = entry.load_config(ROOT / "conf")
+    rf = {"curving": {"min_peak_velocity": 0.12, "max_peak_velocity": 0.25, "currents": [1.6]}}
+    fs, A = 5000.0, 0.025
+    rng = np.random.default_rng(0)
+    kept = []
+    for v in (0.05, 0.2, 0.3, 1.0):
+        f = v / (2 * np.pi * A)
+        t = np.arange(0, 2 / f, 1 / fs)
+        x = A * np.sin(2 * np.pi * f * t)
+        kept += [v for cur in (0.32, 1.6) if F.keep_run("curving", cur, t, x, rf) and cur == 1.6]
+        assert not F.keep_run("curving", 0.32, t, x, rf)
+    assert kept == [0.2]  # fitted peak 0.2; 0.3 m/s is above 0.25 without the fade-in
+    assert F.keep_run("compliance", 1.6, t, x, rf)
+    # one steady cycle: batch-means noise of the bin means ~ sensor noise / sqrt(samples per bin)
+    f = 0.2 / (2 * np.pi * A)
+    t = np.arange(0, 2 / f, 1 / fs)
+    x = A * np.sin(2 * np.pi * f * t)
+    import pandas as pd
+    frame = pd.DataFrame({"time [s]": t, "displacement [m]": x,
+                          "force [N]": 3000 * np.gradient(x, t) + rng.normal(0, 5.0, len(t))})
+    u = F.prepare(F.make_unit("curving", "baseline", "v0.2_I1.6", "damper", 1.6, frame, {}), cfg["features"])
+    assert u.n_cycles == 1 and np.all(np.isfinite(u.sigma)) and np.all(u.sigma > 0)
+    per_bin = 5.0 / np.sqrt(len(t) / 2 / cfg["features"]["phase_bins"])
+    assert np.median(u._within) < 3 * per_bin
+    # checkerboard split over velocity x current
+    units = []
+    for cur in (0.32, 1.6):
+        for fr in (1.0, 2.0):
+            uu = F.Unit("curving", "baseline", f"f{fr}_I{cur}", "damper", cur, t, None, {}, {}, "sine")
+            uu.frequency = fr
+            units.append(uu)
+    assign_folds(units)
+    folds = {(u.current, u.frequency): u.fold for u in units}
+    assert folds[(0.32, 1.0)] != folds[(0.32, 2.0)] and folds[(0.32, 1.0)] != folds[(1.6, 1.0)]
+    assert {u.fold for u in units if u.current == 1.6} == {"train", "heldout"}
+
+
+FLOWBENCH = ["piston_rebound", "piston_intake", "base_compression", "base_intake"]
+
+
+def test_flow_bench_records_pin_the_valves(tmp_path):
+    """Flow-bench units (valve alone, dp per flow bin and ramp direction):
+    the nominal design agrees with the nominal part's lab record within the
+    noise model, a valve preload 30 % off does not; flow-bench records are
+    always training data; a run that is no flow-bench valve is refused
+    naming the file."""
+    from dampertwin.discrepancy.workflow import Problem, assign_folds, mean_z2
+
+    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    s = hidden_sample(base)
+    s["nominal"] = str(ROOT / "conf" / "lab" / "nominal.yaml")
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(s))
+    run_lab(tmp_path / "s.yaml", tmp_path / "m", seed=5, only=[("flowbench", v) for v in FLOWBENCH],
+            progress=False, workers=1)
+    cfg = entry.load_config(ROOT / "conf")
+    d = load(DESIGN)
+    units, _, _ = entry.read_units(tmp_path / "m", d, ROOT / "conf", cfg["features"], cfg["profiles"]["ci"],
+                                   {"flowbench": FLOWBENCH})
+    assert sorted(u.run for u in units) == sorted(FLOWBENCH)
+    assert all(u.configuration == "valve" and u.labels[0][0] == "dp" and u.n_cycles >= 2 for u in units)
+    pr = Problem(units, cfg["features"], {}, progress=False)
+    off = d.with_overrides({"piston_rebound.F_preload": 1.3 * d["piston_rebound.F_preload"]})
+    S = pr.simulate([d, off])
+    pr.set_noise(S[0])
+    allm = pr.mask(None)
+    z_nom, z_off = pr.z(S[0]), pr.z(S[1])
+    assert mean_z2(z_nom, allm) < 3.0
+    k = [i for i, u in enumerate(units) if u.run == "piston_rebound"][0]
+    sl = slice(sum(len(u.labels) for u in units[:k]), sum(len(u.labels) for u in units[:k + 1]))
+    assert float(np.mean(z_off[sl] ** 2)) > 10 * max(float(np.mean(z_nom[sl] ** 2)), 1.0)
+    # the other valves do not see the rebound valve's preload
+    others = np.ones(len(z_nom), bool)
+    others[sl] = False
+    assert np.allclose(z_off[others], z_nom[others])
+    # folds: flow-bench records stay in training, damper records alternate
+    import copy
+    damper = copy.copy(units[0])
+    damper.configuration, damper.test = "damper", "compliance"
+    pair = [copy.copy(damper), copy.copy(damper)]
+    pair[1].current = 0.32
+    assign_folds(units + pair)
+    assert all(u.fold == "train" for u in units) and {u.fold for u in pair} == {"train", "heldout"}
+    # a run that is no flow-bench valve
+    f = tmp_path / "m" / "flowbench" / "piston_rebound.parquet"
+    df = pq.read_table(f).to_pandas()
+    df["run"] = "rod_guide"
+    write_frame(f, df, read_meta(f))
+    with pytest.raises(entry.DiscrepancyError, match="piston_rebound.parquet.*rod_guide"):
+        entry.read_units(tmp_path / "m", d, ROOT / "conf", cfg["features"], cfg["profiles"]["ci"],
+                         {"flowbench": FLOWBENCH})

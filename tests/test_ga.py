@@ -69,7 +69,7 @@ def test_dask_scheduler_runs_the_same_code_path():
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc:
         ev = Evaluator(bowl, scheduler=lc.scheduler_address, chunks=3)
         on_cluster = run_ga(SPECS, ev, SETTINGS, seed=5, progress=False)
-        ev._client.close()
+        ev._map.close()
     local = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=5, progress=False)
     assert on_cluster.best == local.best and on_cluster.best_objective == local.best_objective
 

@@ -55,8 +55,10 @@ class BatchScorer:
 
     def __init__(self, fn: Callable[[np.ndarray], tuple[np.ndarray, list]], n_scores: int,
                  scheduler: str | None = None, chunks: int = 4):
-        self.fn, self.n, self.scheduler, self.chunks = fn, n_scores, scheduler, chunks
-        self._client = None
+        from ..parallel import DaskMap
+
+        self.fn, self.n, self.scheduler = fn, n_scores, scheduler
+        self._map = DaskMap(scheduler, chunks) if scheduler else None
 
     def _check(self, out, m):
         S, why = out if isinstance(out, tuple) else (out, [None] * m)
@@ -66,18 +68,9 @@ class BatchScorer:
         return S, [w if w or np.all(np.isfinite(s)) else "non-finite objective" for s, w in zip(S, why)]
 
     def __call__(self, X: np.ndarray) -> tuple[np.ndarray, list]:
-        if not self.scheduler:
+        if self._map is None:
             return self._check(self.fn(X), len(X))
-        if self._client is None:
-            try:
-                from dask.distributed import Client
-            except ImportError as e:
-                raise RuntimeError("a Dask scheduler is configured but dask.distributed is not installed "
-                                   "(pip install -e '.[dask]')") from e
-            self._client = Client(self.scheduler)
-        parts = np.array_split(X, min(self.chunks, len(X)))
-        outs = [self._check(r, len(x)) for r, x in
-                zip(self._client.gather(self._client.map(self.fn, parts, pure=False)), parts)]
+        outs = [self._check(r, len(x)) for r, x in self._map(self.fn, X)]
         return np.vstack([o[0] for o in outs]), [w for o in outs for w in o[1]]
 
 

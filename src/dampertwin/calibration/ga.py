@@ -116,24 +116,16 @@ class Evaluator:
 
     def __init__(self, batch_objective: Callable[[np.ndarray], np.ndarray], scheduler: str | None = None,
                  chunks: int = 4):
+        from ..parallel import DaskMap
+
         self.f = batch_objective
         self.scheduler = scheduler
-        self.chunks = chunks
-        self._client = None
+        self._map = DaskMap(scheduler, chunks) if scheduler else None
 
     def __call__(self, X: np.ndarray) -> tuple[np.ndarray, list]:
-        if not self.scheduler:
+        if self._map is None:
             return split_scores(self.f(X), len(X))
-        if self._client is None:
-            try:
-                from dask.distributed import Client
-            except ImportError as e:
-                raise RuntimeError("a Dask scheduler is configured but dask.distributed is not installed "
-                                   "(pip install -e '.[dask]')") from e
-            self._client = Client(self.scheduler)
-        parts = np.array_split(X, min(self.chunks, len(X)))
-        futures = self._client.map(self.f, parts, pure=False)
-        out = [split_scores(r, len(x)) for r, x in zip(self._client.gather(futures), parts)]
+        out = [split_scores(r, len(x)) for r, x in self._map(self.f, X)]
         return np.concatenate([o[0] for o in out]), [w for o in out for w in o[1]]
 
 

@@ -19,7 +19,7 @@ from ..variants import load_variant
 from . import features as F
 from .workflow import Problem, run, verdict_document
 
-CONFIGURATIONS = {"compliance": "damper", "curving": "damper", "monosine": "module", "random": "module",
+CONFIGURATIONS = {"flowbench": "valve", "compliance": "damper", "curving": "damper", "monosine": "module", "random": "module",
                   "training": None, "verification": None}
 PROFILES = ("ci", "full")
 
@@ -85,6 +85,8 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         proto_path = conf / "test" / f"{test}.yaml"
         proto = load_protocol(proto_path)
         cfg_name = CONFIGURATIONS[test] or proto["configuration"]
+        bench = ({"bench_volume": float(proto["volume"]), "bench_back_pressure": float(proto["back_pressure"])}
+                 if cfg_name == "valve" else None)
         for f in files:
             df, meta = read_frame(f, test, current_range=(lo, hi), rate=recording_rates(proto))
             case = f.stem
@@ -98,8 +100,16 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
                     continue
                 variants[case] = v
             for name, g in runs(df):
+                if cfg_name == "valve" and str(name) not in proto.get("valves", {}):
+                    raise DiscrepancyError(f"{f}: run {name!r} is not a flow-bench valve of {proto_path} "
+                                           f"(expected one of {', '.join(proto.get('valves', {}))})")
                 cur = float(g["current [A]"].iloc[0]) if "current [A]" in g else 1.6
-                u = F.make_unit(test, case, str(name), cfg_name, cur, g, proto.get("sensors", {}), maxd.get(test))
+                if cfg_name != "valve" and not F.keep_run(test, cur, g["time [s]"].to_numpy(float),
+                                                          g["displacement [m]"].to_numpy(float),
+                                                          prof.get("run_filter")):
+                    continue
+                u = F.make_unit(test, case, str(name), cfg_name, cur, g, proto.get("sensors", {}), maxd.get(test),
+                                bench=bench, flow_cutoff=float(fcfg.get("flow_input_cutoff", 20.0)))
                 try:
                     F.prepare(u, fcfg)
                 except ValueError as e:

@@ -7,6 +7,12 @@ feature estimated from the measurement itself.
   steady cycle the bin mean of the force (and the bin mean and RMS of the rod
   acceleration) is a feature row. Noise = cycle-to-cycle scatter of the
   measured bin values / sqrt(cycles), plus a bench allowance.
+* Flow bench (one valve alone, triangular flow ramps): the ramp cycle is cut
+  into phase bins of the recorded flow (flow level x rising / falling); per
+  cycle the bin mean of the pressure drop. These records pin the valves'
+  own parameters, so a damper-level disagreement cannot be absorbed by
+  distorting a valve (e.g. piston band leakage, which the flow bench does not
+  see).
 * Random test: band levels [dB] of the force and rod-acceleration PSD per
   Welch segment (segments are the bootstrap units); the measured high-band
   floor (sensor noise) is added to the simulated PSD before comparing.
@@ -27,8 +33,11 @@ from ..report import RECORD_CUTOFF
 from ..sensors import sensor_lowpass
 
 FORCE, ACC = "force [N]", "rod acceleration [m/s^2]"
+DP, FLOW, DISPLACEMENT = "dp [Pa]", "flow [m^3/s]", "displacement [m]"
 SIM_FORCE = {"damper": "rod force [N]", "module": "top mount force [N]"}
-SINE_TESTS = ("compliance", "curving", "monosine", "training")
+SIM_DP = ("p upstream [Pa]", "p downstream [Pa]")   # valve configuration (flow bench)
+SINE_TESTS = ("compliance", "curving", "monosine", "training", "flowbench")
+NAMES = {FORCE: "force", DP: "dp"}                   # feature name of a channel's bin mean
 PSD_TESTS = ("random", "verification")
 
 
@@ -55,6 +64,9 @@ class Unit:
     _bins: tuple | None = None                      # (cycle index, bin index, valid mask) for sine units
     _floor: dict | None = None                      # measured PSD floor per channel
     _slope: dict | None = None                      # bin mean of d(signal)/dt per channel (sine units)
+    _within: np.ndarray | None = None               # within-cycle standard error (single steady cycle)
+    drive: str = DISPLACEMENT                       # recorded input channel (the phase reference)
+    sim_kw: dict = field(default_factory=dict)      # extra simulate_batch arguments (flow bench: valve, bench)
 
     @property
     def key(self) -> str:
@@ -66,6 +78,8 @@ class Unit:
 
     @property
     def channels(self) -> list[str]:
+        if self.configuration == "valve":
+            return [DP]
         return [FORCE] + ([ACC] if self.configuration == "module" and ACC in self.measured else [])
 
     def measured_features(self, idx: np.ndarray | None = None) -> np.ndarray:
@@ -75,13 +89,22 @@ class Unit:
 
 
 def make_unit(test: str, case: str, run: str, configuration: str, current: float, frame, sensors: dict,
-              max_duration: float | None = None) -> Unit:
-    """A unit from one run's measured frame (``frame``: time, displacement, force[, rod acceleration])."""
+              max_duration: float | None = None, bench: dict | None = None, flow_cutoff: float = 20.0) -> Unit:
+    """A unit from one run's measured frame (``frame``: time, displacement, force[, rod acceleration];
+    flow bench: time, flow, dp with ``run`` the valve, ``bench`` its volume / back pressure and
+    ``flow_cutoff`` [Hz] the low-pass of the recorded flow used as input, as in the valve fits)."""
     t = frame["time [s]"].to_numpy(float)
     if max_duration is not None and t[-1] - t[0] > max_duration:
         keep = t <= t[0] + max_duration
         frame = frame[keep]
         t = t[keep]
+    if configuration == "valve":
+        q = frame[FLOW].to_numpy(float)
+        ex = Excitation.from_samples(t - t[0], q, kind="flow", cutoff=flow_cutoff)
+        meas = {FLOW: q, DP: frame[DP].to_numpy(float)}
+        kw = {"bench_valve": run, "bench": dict(bench or {})}
+        return Unit(test, case, run, configuration, float(current), t, ex, meas, dict(sensors or {}), "sine",
+                    drive=FLOW, sim_kw=kw)
     x = frame["displacement [m]"].to_numpy(float)
     ex = Excitation.from_samples(t, x, cutoff=RECORD_CUTOFF)
     meas = {"displacement [m]": x, FORCE: frame[FORCE].to_numpy(float)}
@@ -93,7 +116,7 @@ def make_unit(test: str, case: str, run: str, configuration: str, current: float
 
 # ------------------------------------------------------------------ sine units
 def _phase_bins(u: Unit, n_bins: int, transient: int):
-    t, x = u.t, u.measured["displacement [m]"]
+    t, x = u.t, u.measured[u.drive]
     f = kpi.dominant_frequency(t, x)
     c = kpi.harmonic(t, x, f)  # x ~ Re(c e^{i w t})
     theta = 2 * math.pi * f * t + math.atan2(c.imag, c.real)
@@ -107,9 +130,12 @@ def _phase_bins(u: Unit, n_bins: int, transient: int):
     return f, cyc, b, valid
 
 
-def bin_label(k: int, n_bins: int) -> str:
-    """Phase bin k as stroke position (fraction of the amplitude) and direction."""
+def bin_label(k: int, n_bins: int, drive: str = DISPLACEMENT) -> str:
+    """Phase bin k as stroke position (fraction of the amplitude) and direction
+    (flow bench: flow level about the mean and rising / falling)."""
     centre = (k + 0.5) / n_bins * 2 * math.pi
+    if drive == FLOW:
+        return f"flow {'falling' if centre < math.pi else 'rising'} q=mean{math.cos(centre):+.2f}A"
     direction = "compression" if centre < math.pi else "rebound"
     return f"{direction} x={math.cos(centre):+.2f}A"
 
@@ -134,13 +160,44 @@ def _sine_matrix(u: Unit, signals: dict, n_bins: int) -> np.ndarray:
     return np.hstack(cols)
 
 
+def _within_cycle_se(u: Unit, signals: dict, n_bins: int, m: int, deg: int) -> np.ndarray:
+    """Standard error of the bin features of a single steady cycle (curving
+    runs: one steady cycle), by batch means: each bin's samples in ``m``
+    consecutive blocks, a polynomial of degree ``deg`` in time removed from the
+    block means (the force changes along a bin), their scatter / sqrt(m).
+    Covers sensor noise and its autocorrelation up to a block; what remains of
+    the within-bin shape counts as noise (conservative)."""
+    _, cyc, b, valid = u._bins
+    out = []
+    for ch in u.channels:
+        s = signals[ch][valid]
+        kinds = [s] + ([s * s] if ch == ACC else [])
+        for q, sig in enumerate(kinds):
+            se = np.zeros(n_bins)
+            for k in range(n_bins):
+                v = sig[b[valid] == k]
+                if len(v) < 2 * m:
+                    se[k] = np.nan
+                    continue
+                blocks = np.array([blk.mean() for blk in np.array_split(v, m)])
+                tt = np.arange(m, dtype=float)
+                res = blocks - np.polyval(np.polyfit(tt, blocks, deg), tt)
+                sd = math.sqrt(float(np.sum(res ** 2)) / max(m - deg - 1, 1))
+                se[k] = sd / math.sqrt(m)
+                if q == 1:  # rms = sqrt(mean square): d rms = d ms / (2 rms)
+                    se[k] /= max(2 * math.sqrt(max(blocks.mean(), 0.0)), 1e-300)
+            out.append(se)
+    se = np.concatenate(out)
+    return np.where(np.isfinite(se), se, np.nanmedian(se) if np.isfinite(se).any() else 0.0)
+
+
 def _sine_labels(u: Unit, n_bins: int) -> list:
     out = []
     for ch in u.channels:
-        name = "force" if ch == FORCE else "acceleration mean"
-        out += [(name, bin_label(k, n_bins)) for k in range(n_bins)]
+        name = NAMES.get(ch, "acceleration mean")
+        out += [(name, bin_label(k, n_bins, u.drive)) for k in range(n_bins)]
         if ch == ACC:
-            out += [("acceleration rms", bin_label(k, n_bins)) for k in range(n_bins)]
+            out += [("acceleration rms", bin_label(k, n_bins, u.drive)) for k in range(n_bins)]
     return out
 
 
@@ -194,11 +251,35 @@ def _psd_matrix(u: Unit, signals: dict, cfg: dict, simulated: bool) -> np.ndarra
 
 
 # ------------------------------------------------------------------ preparation
+def peak_velocity(t: np.ndarray, x: np.ndarray) -> float:
+    """Peak velocity [m/s] of the fitted stroke sine of a displacement record."""
+    f = kpi.dominant_frequency(t, x)
+    return float(2 * math.pi * f * abs(kpi.harmonic(t, x, f)))
+
+
+def keep_run(test: str, current: float, t: np.ndarray, x: np.ndarray, run_filter: dict | None) -> bool:
+    """Whether a run passes the profile's ``run_filter`` of its test
+    (``min_peak_velocity`` / ``max_peak_velocity`` [m/s] of the fitted stroke sine,
+    ``currents`` [A] within 0.02 A)."""
+    rf = (run_filter or {}).get(test)
+    if not rf:
+        return True
+    cur = rf.get("currents")
+    if cur is not None and not any(abs(float(current) - float(c)) <= 0.02 for c in cur):
+        return False
+    vmin, vmax = rf.get("min_peak_velocity"), rf.get("max_peak_velocity")
+    if vmin is None and vmax is None:
+        return True
+    v = peak_velocity(t, x)
+    return (vmin is None or v >= float(vmin)) and (vmax is None or v <= float(vmax))
+
+
 def prepare(u: Unit, cfg: dict) -> Unit:
     """Measured features per cycle / segment, labels and noise levels."""
     if u.kind == "sine":
         nb = int(cfg["phase_bins"])
-        u._bins = _phase_bins(u, nb, int(cfg["transient_cycles"]))
+        transient = (cfg.get("transient_cycles_by_test") or {}).get(u.test, cfg["transient_cycles"])
+        u._bins = _phase_bins(u, nb, int(transient))
         u.frequency = u._bins[0]
         cmp_ = _compare(u, u.measured, cfg)
         u.per_cycle = _sine_matrix(u, cmp_, nb)
@@ -209,8 +290,11 @@ def prepare(u: Unit, cfg: dict) -> Unit:
             u._slope[ch] = slopes[k:k + nb]
             k += nb * (2 if ch == ACC else 1)
         u.labels = _sine_labels(u, nb)
-        if u.per_cycle.shape[0] < 2:
-            raise ValueError(f"{u.key}: fewer than 2 steady cycles; cannot estimate the cycle-to-cycle scatter")
+        if u.per_cycle.shape[0] < 1:
+            raise ValueError(f"{u.key}: no steady cycle after the {transient} transient cycle(s)")
+        if u.per_cycle.shape[0] == 1:
+            u._within = _within_cycle_se(u, cmp_, nb, int(cfg.get("within_cycle_blocks", 10)),
+                                         int(cfg.get("within_cycle_degree", 2)))
     else:
         fs, n, m = _segments(u, cfg["psd_segment"])
         if m < 3:
@@ -237,7 +321,8 @@ def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
     pc = u.per_cycle
     n = pc.shape[0]
     r = pc - sim_pc if sim_pc is not None and np.all(np.isfinite(sim_pc)) else pc
-    sd = np.std(r, axis=0, ddof=1)
+    # one steady cycle (curving): batch-means standard error inside the cycle (n = 1)
+    sd = np.std(r, axis=0, ddof=1) if n >= 2 else np.asarray(u._within, float)
     mean = pc.mean(axis=0)
     sig = np.zeros_like(mean)
     fl = cfg["bench_floor"]
@@ -254,9 +339,9 @@ def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
             gain = np.full(len(idx), float(fl["psd_offset_db"]))
             off = np.zeros(len(idx))
         else:
-            ch = FORCE if name == "force" else ACC
+            ch = {"force": FORCE, "dp": DP}.get(name, ACC)
             rms = float(np.sqrt(np.mean(u.measured[ch] ** 2)))
-            b = fl["force"] if ch == FORCE else fl["rod acceleration"]
+            b = fl[{FORCE: "force", DP: "dp", ACC: "rod acceleration"}[ch]]
             sig[m] = np.sqrt(scatter ** 2 + (float(b["floor"]) * rms) ** 2)
             gain = float(b["gain"]) * mean[m]
             off = np.full(len(idx), float(b["offset"]) * rms if name != "acceleration rms" else 0.0)
@@ -276,6 +361,8 @@ def sim_signals(u: Unit, channels: dict, row: int) -> dict:
     fs = 1.0 / float(np.mean(np.diff(u.t)))
     n = len(u.t)
     out = {}
+    if u.configuration == "valve":
+        return {DP: channels[SIM_DP[0]][row][:n] - channels[SIM_DP[1]][row][:n]}
     f = channels[SIM_FORCE[u.configuration]][row][:n]
     out[FORCE] = sensor_lowpass(f, u.sensors.get("force"), fs)
     if ACC in u.channels:
@@ -306,4 +393,6 @@ def _compare(u: Unit, signals: dict, cfg: dict) -> dict:
 
 
 def sim_channels(u: Unit) -> list[str]:
+    if u.configuration == "valve":
+        return list(SIM_DP)
     return [SIM_FORCE[u.configuration]] + ([ACC] if ACC in u.channels else [])

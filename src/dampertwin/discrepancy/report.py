@@ -91,12 +91,13 @@ def overlays(problem, signals, out) -> list:
                                  squeeze=False)
         t = u.t
         m = t >= t[-1] - 1.0 / u.frequency
+        scale, xl = (6e4, "flow [l/min]") if u.drive == F.FLOW else (1e3, "displacement [mm]")
+        x = u.measured[u.drive][m] * scale
         for ax, ch in zip(axes[0], u.channels):
-            ax.plot(u.measured["displacement [m]"][m] * 1e3, u.measured[ch][m], color="tab:purple", lw=1,
-                    label="measured")
-            ax.plot(u.measured["displacement [m]"][m] * 1e3, sb[ch][m], "--", color="0.4", lw=1, label="before")
-            ax.plot(u.measured["displacement [m]"][m] * 1e3, sa[ch][m], color="tab:green", lw=1, label="after")
-            ax.set(xlabel="displacement [mm]", ylabel=ch, title=f"{u.key}: last cycle")
+            ax.plot(x, u.measured[ch][m], color="tab:purple", lw=1, label="measured")
+            ax.plot(x, sb[ch][m], "--", color="0.4", lw=1, label="before")
+            ax.plot(x, sa[ch][m], color="tab:green", lw=1, label="after")
+            ax.set(xlabel=xl, ylabel=ch, title=f"{u.key}: last cycle")
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7)
         p = out / f"overlay_{u.test}_{u.case}_{u.run}.png".replace("/", "_")
@@ -115,6 +116,8 @@ def thesis_tables(problem, signals) -> str:
     """Table 6.5 / 6.6 layouts (kpi builders) for the mono-sine / random records present, before and after."""
     r65, r66 = {"before": [], "after": []}, {"before": [], "after": []}
     for ui, u in enumerate(problem.units):
+        if u.test not in ("monosine", "random"):
+            continue
         meas = _frame(u, {k: v for k, v in u.measured.items() if k != "displacement [m]"})
         for j, when in enumerate(("before", "after")):
             s = signals[ui][j]

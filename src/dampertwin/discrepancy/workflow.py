@@ -196,7 +196,7 @@ class Problem:
                 try:
                     _, ch, status = simulate_batch([ds[j] for j in members], u.excitation, u.configuration,
                                                    current=u.current, rate=fs, duration=float(u.t[-1] - u.t[0]),
-                                                   channels=F.sim_channels(u), max_wall_s=600.0)
+                                                   channels=F.sim_channels(u), max_wall_s=600.0, **u.sim_kw)
                 except Exception as e:  # noqa: BLE001 - one invalid member must not lose the population
                     self.failures.append(f"{u.key}: {type(e).__name__}: {e}")
                     continue
@@ -371,11 +371,30 @@ def _nan_row(r: Row) -> Row:
 
 # ------------------------------------------------------------------ the workflow
 def assign_folds(units: list) -> None:
-    """Training / held-out records: alternate over the records in test order,
-    so held-out data are other velocities / currents / cases / tests than
-    the fitted ones. A single record is both (said in the report)."""
-    for i, u in enumerate(units):
-        u.fold = "train" if i % 2 == 0 else "heldout"
+    """Training / held-out records: alternate over the damper / module
+    records in test order, so held-out data are other velocities / currents /
+    cases / tests than the fitted ones. Within a multi-run record (curving:
+    velocities x currents) the runs alternate over velocity and the pattern
+    flips from one current to the next (a checkerboard), so every current
+    and, with two or more runs per current, low and higher velocities are in
+    both sets. Flow-bench records (the valves alone) are always training
+    data: they pin the valve parameters in every refit. A single record is
+    both (said in the report)."""
+    i = 0
+    groups: dict = {}
+    for u in units:
+        if u.configuration == "valve":
+            u.fold = "train"
+            continue
+        groups.setdefault((u.test, u.case), []).append(u)
+    for grp in groups.values():
+        currents = sorted({round(u.current, 3) for u in grp})
+        by_cur = {c: sorted((u for u in grp if round(u.current, 3) == c), key=lambda u: u.frequency or 0.0)
+                  for c in currents}
+        for k, c in enumerate(currents):
+            for j, u in enumerate(by_cur[c]):
+                u.fold = "train" if (i + j + k) % 2 == 0 else "heldout"
+        i += len(grp)
     if len(units) == 1:
         units[0].fold = "train"
 
