@@ -233,3 +233,35 @@ def test_flow_bench_records_pin_the_valves(tmp_path):
     with pytest.raises(entry.DiscrepancyError, match="piston_rebound.parquet.*rod_guide"):
         entry.read_units(tmp_path / "m", d, ROOT / "conf", cfg["features"], cfg["profiles"]["ci"],
                          {"flowbench": FLOWBENCH})
+
+
+def test_record_gate_is_a_bonferroni_chi_square_test():
+    """worst_record: under pure noise (whitened residuals N(0, 1)) the
+    family-wise false-alarm rate over 15 records of 8-24 features is <= alpha
+    (Monte Carlo, 10000 draws); one record 2 sigma off in every feature is
+    found however many records agree (the mean over all features would not:
+    it stays near 1.2)."""
+    from types import SimpleNamespace
+
+    from dampertwin.discrepancy.workflow import mean_z2, worst_record
+
+    sizes = [8] * 7 + [24] * 6 + [16] * 2
+    units = [SimpleNamespace(labels=[None] * n, key=f"r{i}") for i, n in enumerate(sizes)]
+    pr = SimpleNamespace(units=units)
+    nf = sum(sizes)
+    mask = np.ones(nf, bool)
+    rng = np.random.default_rng(1)
+    alpha = 0.05
+    n = 10000
+    rate = sum(worst_record(pr, rng.standard_normal(nf), mask, alpha)[0] > 1.0 for _ in range(n)) / n
+    assert rate <= alpha + 3 * np.sqrt(alpha * (1 - alpha) / n)   # Bonferroni: at most alpha (+ Monte Carlo error)
+    assert rate >= alpha / 4                                     # and not a test that never fires
+    z = rng.standard_normal(nf)
+    z[:8] = 2.0 + 0.3 * rng.standard_normal(8)   # record r0 off by ~2 sigma
+    worst, key = worst_record(pr, z, mask, 0.01)
+    assert key == "r0" and worst > 1.0
+    assert mean_z2(z, mask) < 1.5
+    # a record outside the mask is not tested
+    m2 = mask.copy()
+    m2[:8] = False
+    assert worst_record(pr, z, m2, 0.01)[1] != "r0"

@@ -260,8 +260,9 @@ def worst_record(problem: "Problem", z: np.ndarray, mask: np.ndarray, alpha: flo
         k += n
     worst, key = 0.0, ""
     q = 1.0 - alpha / max(len(blocks), 1)
+    quant = {n: float(chi2_dist.ppf(q, n)) for n in {len(v) for _, v in blocks}}
     for name, v in blocks:
-        val = float(np.sum(v * v)) / float(chi2_dist.ppf(q, len(v))) if np.all(np.isfinite(v)) else math.inf
+        val = float(np.sum(v * v)) / quant[len(v)] if np.all(np.isfinite(v)) else math.inf
         if val > worst:
             worst, key = val, name
     return worst, key
