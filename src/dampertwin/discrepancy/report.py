@@ -51,9 +51,13 @@ def _unit_map(problem, z: np.ndarray):
 
 def heatmaps(problem, z_before, z_after, out) -> list:
     paths = []
-    for kind, title in (("sine", "phase bin (stroke position x direction)"), ("psd", "frequency band")):
-        mb = [(u, c) for u, c in _unit_map(problem, z_before) if u.kind == kind]
-        ma = [(u, c) for u, c in _unit_map(problem, z_after) if u.kind == kind]
+    def kind_of(u):
+        return "flowbench" if u.drive == F.FLOW else u.kind
+
+    for kind, title in (("sine", "phase bin (stroke position x direction)"),
+                        ("flowbench", "flow bin (flow level x ramp direction)"), ("psd", "frequency band")):
+        mb = [(u, c) for u, c in _unit_map(problem, z_before) if kind_of(u) == kind]
+        ma = [(u, c) for u, c in _unit_map(problem, z_after) if kind_of(u) == kind]
         if not mb:
             continue
         cols = list(mb[0][1])
