@@ -85,7 +85,7 @@ def one_case(it: dict) -> dict:
     sp.write_text(yaml.safe_dump(s))
     data = work / f"case{k}"
     t1 = time.time()
-    run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=1)
+    run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=1, conf=conf)
     art = it["art"]
     if art is not None:
         for f in data.glob("*/*.parquet"):
