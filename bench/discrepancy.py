@@ -140,10 +140,12 @@ def main(argv=None) -> int:
         for r in rows:
             print(json.dumps(r), file=sys.stderr)
     else:
+        from tqdm import tqdm
+
         rows = []
-        for it in items:
+        for it in tqdm(items, desc="hidden-effect matrix (cases)", file=sys.stderr):
             rows.append(one_case(it))
-            print(json.dumps(rows[-1]), file=sys.stderr)
+            tqdm.write(json.dumps(rows[-1]), file=sys.stderr)
     if args.work is None:
         shutil.rmtree(work, ignore_errors=True)
 
