@@ -572,12 +572,21 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     # pairs of the best candidates
     n_pairs = int(prof["candidates"].get("pairs", 0))
     pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]][:n_pairs]
+    def train_chi(n):
+        return chi(problem.z(fits[n].S), train)
+
     for a, b in pairs:
         pc = Candidate(f"{a.name}+{b.name}", a.effects + b.effects, a.params + b.params, {**a.typical, **b.typical})
-        start = [FitParam(p.key, p.lo, p.hi, fits[a.name].values.get(p.key, fits[b.name].values.get(p.key, p.start)))
-                 for p in pc.params]
-        J0 = {**cal.J, **{k: v for n in (a.name, b.name) for k, v in fits[n].J.items() if k not in cal.J}}
-        fits[pc.name] = gauss_newton(problem, design, pc.overrides(), start + cal_start, train, its, step,
+        # forward selection: the partner joins the better single fit (its values, its Jacobian) at its
+        # typical magnitude; its own single-fit values compensated for the lead effect's absence
+        lead = a if train_chi(a.name) <= train_chi(b.name) else b
+        lv = fits[lead.name].values
+        start = [FitParam(p.key, p.lo, p.hi, lv.get(p.key, p.start)) for p in pc.params]
+        # calibration parameters from the lead fit, else at the design's own values (the lead fitted
+        # alone: the calibration refit's values compensate the missing lead effect)
+        cs = [FitParam(p.key, p.lo, p.hi, lv.get(p.key, prior[p.key][0])) for p in cal_start]
+        J0 = {**cal.J, **{k: v for k, v in fits[lead.name].J.items() if k not in cal.J}}
+        fits[pc.name] = gauss_newton(problem, design, pc.overrides(), start + cs, train, its, step,
                                      f"refit {pc.name}", J0=J0, prior=prior)
         top.append(pc)
     res["fits"] = fits
@@ -597,11 +606,15 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         ch_ = chi(zf, held)
         closed = (chi_cal_h - ch_) / max(chi_cal_h - nh, 1e-9)
         stats[c.name] = {"gain": chi_cal_h - ch_ - pen, "closed": closed, "penalty": pen, "k": k, "cand": c}
-    # a pair is eligible only when each of its effects alone gains on held-out data (no free rider)
+    # a pair is eligible when one of its effects gains on held-out data alone and the pair gains more
+    # than that effect alone (the partner earns its extra penalty given the lead: no free rider)
     for n in list(stats):
-        if "+" in n and not all(stats.get(m, {}).get("gain", -1.0) > 0 for m in n.split("+")):
-            stats[n]["eligible"] = False
-            log.append(f"{n}: not eligible (an effect of the pair does not gain on held-out data alone)")
+        if "+" in n:
+            alone = [stats.get(m, {}).get("gain", -math.inf) for m in n.split("+")]
+            if not (max(alone) > 0 and stats[n]["gain"] > max(alone)):
+                stats[n]["eligible"] = False
+                log.append(f"{n}: not eligible (no effect of the pair gains alone on held-out data, or the pair "
+                           "gains less than its better effect alone)")
     rng = np.random.default_rng(seed)
     B = int(prof["bootstrap"])
     names = [n for n in stats if stats[n].get("eligible", True)]
