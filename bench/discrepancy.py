@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -85,7 +86,7 @@ def one_case(it: dict) -> dict:
     sp.write_text(yaml.safe_dump(s))
     data = work / f"case{k}"
     t1 = time.time()
-    run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=1, conf=conf)
+    run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=it["lab_workers"], conf=conf)
     art = it["art"]
     if art is not None:
         for f in data.glob("*/*.parquet"):
@@ -113,6 +114,8 @@ def main(argv=None) -> int:
                                         "flowbench:base_intake,compliance:baseline,monosine:baseline_1.6,"
                                         "monosine:baseline_0.32,random:baseline_1.6,curving:baseline",
                     help="lab records generated per case (the ci profile's tests)")
+    ap.add_argument("--lab-workers", type=int, default=None,
+                    help="processes generating one case's lab records (default: all cores locally, 1 on a cluster)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
     ap.add_argument("--scheduler", default=None,
                     help="Dask scheduler address: cases run as tasks on the cluster (work folder shared)")
@@ -130,7 +133,8 @@ def main(argv=None) -> int:
     work.mkdir(parents=True, exist_ok=True)
     plan, names = cases(args, design, cfg, rng)
     items = [{"k": k, "cell": cell, "truth": truth, "spec": spec, "art": art, "seed": int(rng.integers(0, 2**31)),
-              "base": base, "conf": str(conf), "work": str(work), "only": only, "tests": tests}
+              "base": base, "conf": str(conf), "work": str(work), "only": only, "tests": tests,
+              "lab_workers": args.lab_workers or (1 if args.scheduler else os.cpu_count() or 1)}
              for k, (cell, truth, spec, art) in enumerate(plan)]
     t0 = time.time()
     if args.scheduler:  # one case per task on the Dask cluster (same function as locally)
