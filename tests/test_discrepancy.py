@@ -78,6 +78,15 @@ def test_control_says_none_and_design_round_trips(control, tmp_path):
     again = loads(d.dumps(), base_dir=str(ROOT / "conf" / "design"))
     assert again.hash() == d.hash()
     assert not d.effects["piston_leakage"]
+    # what these records (compliance + two mono-sine currents, seconds long) could have seen: the
+    # active valve's lag and the top mount's play move the mono-sine acceleration far beyond the
+    # record gate; oil heating over seconds (ratio ~0) cannot show, whatever the gate
+    rs = {r["effect"]: r for r in json.loads((tmp_path / "out" / "resolvability.json").read_text())}
+    assert {"piston_leakage", "oil_thermal", "active_valve_lag", "top_mount_backlash"} <= set(rs)
+    assert rs["active_valve_lag"]["resolvable"] and rs["top_mount_backlash"]["resolvable"], rs
+    assert rs["oil_thermal"]["resolvable"] is False and rs["oil_thermal"]["ratio"] < 0.01, rs
+    assert rs["oil_thermal"]["separating_test"] == "training"
+    assert "What these records can resolve" in (tmp_path / "out" / "report.md").read_text()
 
 
 def test_hidden_leakage_is_named(leak, tmp_path):

@@ -144,6 +144,8 @@ def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 
     try:
         _dump_design(res["design"], tmp)
         (tmp / "verdict.json").write_text(json.dumps(doc, indent=2) + "\n")
+        if res.get("resolvability"):  # `none` verdicts: what these records could have seen
+            (tmp / "resolvability.json").write_text(json.dumps(res["resolvability"], indent=2) + "\n")
         write_report(tmp, d, problem, res, doc, {"design": design, "measured": measured, "profile": profile,
                                                  "seed": int(seed)})
         if out.exists():

@@ -156,6 +156,22 @@ def thesis_tables(problem, signals) -> str:
     return "\n".join(parts) if parts else "(no mono-sine or random record used)\n"
 
 
+def _resolvability_section(rs) -> list:
+    """`none` verdicts: which library effects these records could have seen at their typical magnitude."""
+    if not rs:
+        return []
+    return [
+        "## What these records can resolve", "",
+        "Each candidate switched on at its typical magnitude: the chi^2 of its signature in its most affected "
+        "record, after what the calibration pool and the bench allowances absorb, over that record's gate "
+        "quantile. Below 1 the typical magnitude would not have been seen: `none` says nothing about that "
+        "effect; about `min factor` x typical would be needed, or the test named.", "",
+        _md_table([{"effect": r["effect"], "ratio": r["ratio"], "record": r["record"],
+                    "resolvable": r["resolvable"], "min factor": r["min_factor"],
+                    "separating test": r["separating_test"]} for r in rs]),
+    ]
+
+
 def write_report(out, design, problem, res, doc, args) -> None:
     plots = out / "plots"
     plots.mkdir(parents=True, exist_ok=True)
@@ -188,6 +204,7 @@ def write_report(out, design, problem, res, doc, args) -> None:
                     "held-out gap after": c["heldout_gap_after"],
                     "parameters": ", ".join(f"{k}={v:.3g}" for k, v in c["parameters"].items())}
                    for c in doc["candidates"]]),
+        *_resolvability_section(res.get("resolvability")),
         "## Decision log", "",
         *[f"- {x}" for x in res["log"]], "",
         "## Thesis tables before / after", "",

@@ -395,6 +395,49 @@ def _nan_row(r: Row) -> Row:
     return Row([np.full_like(p, np.nan) for p in r.pcs])
 
 
+def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: np.ndarray, prior_sigma: float,
+                  alpha: float, separating: dict) -> list[dict]:
+    """What the records present can resolve: each candidate switched on at
+    its typical magnitude on ``base``, its whitened signature (bench gain /
+    offset allowances already in the whitening) minus what the calibration
+    pool absorbs (columns ``J`` = d z / d u, prior width ``prior_sigma`` in
+    u as in the refit), as chi^2 in its most affected record over that
+    record's gate quantile (``worst_record``). ratio >= 1: the typical
+    magnitude alone exceeds the gate; otherwise about 1 / sqrt(ratio) x the
+    typical magnitude would be needed (signature linear in the magnitude).
+    A `none` verdict says nothing about an effect with ratio << 1."""
+    designs, ok = [], []
+    for c in cands:
+        try:
+            designs.append(base.with_overrides(c.overrides()))
+            ok.append(True)
+        except DesignError:
+            designs.append(base)
+            ok.append(False)
+    if not designs:
+        return []
+    S = problem.simulate(designs, label="resolvability")
+    zb = problem.z(S_base)
+    allm = problem.mask(None)
+    n = J.shape[1]
+    A = np.vstack([J, np.eye(n) / prior_sigma]) if n else None
+    out = []
+    for c, o, row in zip(cands, ok, S):
+        zs = problem.z(row)
+        entry = {"effect": c.name, "ratio": None, "record": "", "resolvable": None,
+                 "min_factor": None, "separating_test": separating.get(c.name, separating.get("default", ""))}
+        if o and np.all(np.isfinite(zs)) and np.all(np.isfinite(zb)):
+            s = zb - zs   # the residual the effect would leave if the model lacked it
+            if n:
+                a = np.linalg.lstsq(A, np.concatenate([s, np.zeros(n)]), rcond=None)[0]
+                s = s - J @ a
+            ratio, rec = worst_record(problem, s, allm, alpha)
+            entry.update(ratio=round(ratio, 4), record=rec, resolvable=bool(ratio >= 1.0),
+                         min_factor=round(1.0 / math.sqrt(ratio), 3) if ratio > 0 else None)
+        out.append(entry)
+    return out
+
+
 # ------------------------------------------------------------------ the workflow
 def assign_folds(units: list) -> None:
     """Training / held-out records: alternate over the damper / module
@@ -482,6 +525,24 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
                f"({problem.n_eff()} cycles / segments); threshold {dcfg['disagree_mean_z2']}; worst record "
                f"{wkey0}: chi^2 / its {100 * (1 - alpha):g} % quantile (Bonferroni over records) {wz0:.2f}")
     gap_before = _gap(z0, held)
+    Jc = np.zeros((len(M), len(pool)))
+    for i in range(len(pool)):
+        col = (problem.z(S_sens[i + 1]) - z0) / hs[i]
+        Jc[:, i] = np.where(np.isfinite(col), col, 0.0)
+
+    def resolved(base, S_base):
+        """Before a `none`: which candidates these records could have seen (report)."""
+        if not dcfg.get("resolvability", True) or alpha <= 0:
+            return
+        rs = resolvability(problem, base, S_base, catalogue(design, cfg), Jc, float(dcfg.get("prior_sigma", 0.1)),
+                           alpha, cfg.get("separating_tests", {}) or {})
+        res["resolvability"] = rs
+        weak = [r for r in rs if r["resolvable"] is False]
+        if weak:
+            log.append("not resolvable on these records at the typical magnitude (signature beyond the calibration "
+                       "pool and bench allowances / the record gate): "
+                       + ", ".join(f"{r['effect']} {r['ratio']:.2f} (needs ~{r['min_factor']:.1f}x; "
+                                   f"{r['separating_test']})" for r in weak))
 
     def finish(verdict, effects, group, final_design, S_final, overrides):
         zf = problem.z(S_final)
@@ -496,13 +557,10 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
 
     if mz0 <= float(dcfg["disagree_mean_z2"]) and wz0 <= 1.0:
         log.append("no disagreement beyond noise and bench error: verdict none")
+        resolved(design, S0)
         return finish("none", [], [], design, S0, {})
 
     # 2. Separate miscalibration ------------------------------------------------
-    Jc = np.zeros((len(M), len(pool)))
-    for i in range(len(pool)):
-        col = (problem.z(S_sens[i + 1]) - z0) / hs[i]
-        Jc[:, i] = np.where(np.isfinite(col), col, 0.0)
     r = z0[train]
     gain = np.array([(Jc[train, i] @ r) ** 2 / max(Jc[train, i] @ Jc[train, i], 1e-300) for i in range(len(pool))])
     order = [i for i in np.argsort(-gain) if gain[i] > 0][: int(prof["calibration"]["max_params"])]
@@ -520,6 +578,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
                f"{wkey_cal} {wz_cal:.2f} (chi^2 / quantile)")
     if mz_cal_h <= float(dcfg["ok_mean_z2"]) and mz_cal_all <= float(dcfg["ok_mean_z2"]) and wz_cal <= 1.0:
         log.append("the calibration refit explains the data: calibration only, verdict none")
+        resolved(cal.design, cal.S)
         return finish("none", [], [], cal.design, cal.S, cal.values)
 
     # 3. Name -------------------------------------------------------------------
