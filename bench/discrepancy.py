@@ -95,7 +95,7 @@ def one_case(it: dict) -> dict:
             write_frame(f, df, {**read_meta(f), "artefact": list(art)})
     t_lab = time.time() - t1
     doc = entry.main(str(conf / "design" / "baseline.yaml"), str(data), str(work / f"out{k}"), profile="ci",
-                     seed=it["seed"], progress=False, tests=it["tests"])
+                     seed=it["seed"], progress=False, tests=it["tests"], workers=it["lab_workers"])
     rfile = work / f"out{k}" / "resolvability.json"   # written with `none` verdicts
     rs = {r["effect"]: r for r in json.loads(rfile.read_text())} if rfile.is_file() else {}
     return {"cell": it["cell"], "truth": it["truth"], "verdict": doc["verdict"], "effects": doc["effects"],
@@ -119,7 +119,8 @@ def main(argv=None) -> int:
                                         "monosine:baseline_0.32,random:baseline_1.6,curving:baseline",
                     help="lab records generated per case (the ci profile's tests)")
     ap.add_argument("--lab-workers", type=int, default=None,
-                    help="processes generating one case's lab records (default: all cores locally, 1 on a cluster)")
+                    help="processes generating one case's lab records and simulating its records in the workflow "
+                         "(default: all cores locally, 1 per case on a cluster)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
     ap.add_argument("--scheduler", default=None,
                     help="Dask scheduler address: cases run as tasks on the cluster (work folder shared)")

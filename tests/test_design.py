@@ -302,3 +302,14 @@ def test_random_single_field_corruption_is_rejected(tmp_path_factory, c):
         assert "fuzz.yaml" in str(err)
     else:
         raise AssertionError(f"accepted corruption {c}")
+
+
+def test_design_pickles_for_process_pools(base):
+    """Designs cross process boundaries (discrepancy record pool): same hash, same text, still read-only."""
+    import pickle
+
+    d = base.with_overrides({"effects.oil_thermal": True, "piston_rebound.a": 1.1 * base["piston_rebound.a"]})
+    e = pickle.loads(pickle.dumps(d))
+    assert e.hash() == d.hash() and e.dumps() == d.dumps() and e.hash() != base.hash()
+    with pytest.raises(TypeError):
+        e.effects["oil_thermal"] = False

@@ -62,8 +62,9 @@ def _leak_key() -> str:
     return "constants.leak_gap"
 
 
-def _run(measured: Path, out: Path, seed: int = 0) -> dict:
-    doc = entry.main(str(DESIGN), str(measured), str(out), profile="ci", seed=seed, progress=False, tests=TESTS)
+def _run(measured: Path, out: Path, seed: int = 0, workers: int | None = None) -> dict:
+    doc = entry.main(str(DESIGN), str(measured), str(out), profile="ci", seed=seed, progress=False, tests=TESTS,
+                     workers=workers)
     assert json.loads((out / "verdict.json").read_text()) == doc
     assert set(doc) == KEYS
     assert (out / "report.md").is_file() and list((out / "plots").glob("*.png"))
@@ -87,6 +88,15 @@ def test_control_says_none_and_design_round_trips(control, tmp_path):
     assert rs["oil_thermal"]["resolvable"] is False and rs["oil_thermal"]["ratio"] < 0.01, rs
     assert rs["oil_thermal"]["separating_test"] == "training"
     assert "What these records can resolve" in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_record_workers_give_the_same_numbers(control, tmp_path):
+    """The records simulated in a 2-process pool (the default on 2 cores) and in this process: same bytes."""
+    a = _run(control, tmp_path / "pool", workers=2)
+    b = _run(control, tmp_path / "serial", workers=1)
+    assert a == b
+    for name in ("verdict.json", "resolvability.json", "design.yaml"):
+        assert (tmp_path / "pool" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes(), name
 
 
 def test_hidden_leakage_is_named(leak, tmp_path):

@@ -191,13 +191,16 @@ def _add_discrepancy(sub) -> None:
     dis.add_argument("--out", required=True, help="output folder")
     dis.add_argument("--profile", choices=("ci", "full"), default="ci", help="budget (conf/discrepancy.yaml)")
     dis.add_argument("--seed", type=int, default=0, help="seed of every random draw (bootstrap)")
+    dis.add_argument("--workers", type=int, default=None,
+                     help="processes simulating the records in parallel (default: all cores; same results)")
 
 
 def _run_discrepancy(args) -> int:
     """Exit 0 for every verdict; bad input raises a UserError (exit 2, file named)."""
     from .discrepancy.entry import main as run_discrepancy
 
-    doc = run_discrepancy(args.design, args.measured, args.out, profile=args.profile, seed=args.seed)
+    doc = run_discrepancy(args.design, args.measured, args.out, profile=args.profile, seed=args.seed,
+                          workers=args.workers)
     print(f"verdict: {doc['verdict']}" + (f" ({', '.join(doc['effects'])})" if doc["effects"] else "")
           + f"; held-out gap {doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g} "
           f"(closed {100 * doc['gap']['closed_fraction']:.0f} %); {Path(args.out) / 'verdict.json'}")

@@ -247,6 +247,12 @@ class PQMap:
     __hash__ = None  # type: ignore[assignment]
 
 
+def _rebuild_design(name, description, parameters, constants, effects, pq_map, path, map_dirs, effect_params):
+    """``Design.__reduce__``'s constructor."""
+    return Design(name, description, MappingProxyType(parameters), MappingProxyType(constants),
+                  MappingProxyType(effects), pq_map, path, map_dirs, MappingProxyType(effect_params))
+
+
 @dataclass(frozen=True, eq=False)
 class Design:
     """A validated damper design. Index by ``"group.name"``, a unique bare
@@ -261,6 +267,12 @@ class Design:
     path: Path | None = field(default=None, compare=False)
     map_dirs: tuple = field(default=(), compare=False)  # extra folders the P/Q map may live in
     effect_params: Mapping[str, EffectParameter] = field(default_factory=lambda: MappingProxyType({}))
+
+    def __reduce__(self):
+        """Picklable (process pools run designs in other processes): the
+        read-only mappings travel as dicts and come back read-only."""
+        return (_rebuild_design, (self.name, self.description, dict(self.parameters), dict(self.constants),
+                                  dict(self.effects), self.pq_map, self.path, self.map_dirs, dict(self.effect_params)))
 
     def effect_parameters(self, effect: str | None = None) -> list[EffectParameter]:
         """The effect parameters (all, or those of one effect), in file order."""

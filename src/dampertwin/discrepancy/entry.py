@@ -17,7 +17,7 @@ from ..io import read_frame, runs
 from ..protocols import load_protocol, recording_rates
 from ..variants import load_variant
 from . import features as F
-from .workflow import Problem, run, verdict_document
+from .workflow import Problem, record_pool, run, verdict_document
 
 CONFIGURATIONS = {"flowbench": "valve", "compliance": "damper", "curving": "damper", "monosine": "module", "random": "module",
                   "training": None, "verification": None}
@@ -122,10 +122,10 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
 
 
 def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 0, progress: bool = True,
-         tests: dict | None = None) -> dict:
-    """Run the workflow and write OUT atomically. Returns the verdict document."""
-    from .report import write_report
-
+         tests: dict | None = None, workers: int | None = None) -> dict:
+    """Run the workflow and write OUT atomically. Returns the verdict document.
+    ``workers`` processes simulate the records in parallel (default: the
+    machine's cores; 1: in this process, e.g. inside a Dask task)."""
     conf = _conf_dir()
     cfg = load_config(conf)
     if profile not in cfg["profiles"]:
@@ -135,6 +135,17 @@ def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 
     prof = cfg["profiles"][profile]
     units, variants, notes = read_units(Path(measured), d, conf, cfg["features"], prof, tests)
     problem = Problem(units, cfg["features"], variants, progress=progress)
+    problem.executor = record_pool(workers)
+    try:
+        return _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
+    finally:
+        if problem.executor is not None:
+            problem.executor.shutdown(cancel_futures=True)
+
+
+def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out) -> dict:
+    from .report import write_report
+
     res = run(d, problem, cfg, profile, int(seed))
     res["notes"] = notes
     doc = verdict_document(res)

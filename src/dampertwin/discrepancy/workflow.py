@@ -142,6 +142,7 @@ class Problem:
     n_sims: int = 0
     W: np.ndarray | None = None
     failures: list = field(default_factory=list)
+    executor: object = None          # concurrent.futures executor for the records (None: in process)
 
     @property
     def labels(self):
@@ -171,45 +172,36 @@ class Problem:
 
     def simulate(self, designs: list, label: str = "simulate", keep: bool = False):
         """Simulated features (a Row per design; NaN for failed members);
-        with ``keep`` also the simulated signals per unit."""
+        with ``keep`` also the simulated signals per unit. Records run as
+        separate tasks on ``executor`` when one is set (a process pool:
+        a refit step simulates ONE design, which a batch alone cannot spread
+        over the cores), longest first; the results are the same numbers."""
         from tqdm import tqdm
 
+        n = len(self.units)
+        args = [(u, self.fcfg, self.variant_of.get(u.case), designs, keep) for u in self.units]
+        done: list = [None] * n
+        bar = tqdm(total=n, desc=f"{label} ({len(designs)} designs)", disable=not self.progress, leave=False)
+        if self.executor is not None and n > 1:
+            from concurrent.futures import as_completed
+
+            order = sorted(range(n), key=lambda i: -self.units[i].t.size)   # longest record first
+            futs = {self.executor.submit(simulate_unit, *args[i]): i for i in order}
+            for f in as_completed(futs):
+                done[futs[f]] = f.result()
+                bar.update()
+        else:
+            for i in range(n):
+                done[i] = simulate_unit(*args[i])
+                bar.update()
+        bar.close()
         pcs, kept = [], []
-        for u in tqdm(self.units, desc=f"{label} ({len(designs)} designs)", disable=not self.progress, leave=False):
-            var = self.variant_of.get(u.case)
-            ds, bad = [], []
-            for d in designs:
-                try:
-                    ds.append(var.apply(d) if var is not None else d)
-                    bad.append(False)
-                except (DesignError, ValueError):
-                    ds.append(designs[0] if var is None else var.apply(designs[0]))
-                    bad.append(True)
-            fs = 1.0 / float(np.mean(np.diff(u.t)))
-            # one batch per pattern of effect switches (effects with states must be alike in a batch)
-            groups: dict = {}
-            for j, d in enumerate(ds):
-                groups.setdefault(tuple(sorted(d.effects.items())), []).append(j)
-            rows = [np.full(u.per_cycle.shape, np.nan) for _ in ds]
-            sig = [None] * len(ds)
-            for members in groups.values():
-                try:
-                    _, ch, status = simulate_batch([ds[j] for j in members], u.excitation, u.configuration,
-                                                   current=u.current, rate=fs, duration=float(u.t[-1] - u.t[0]),
-                                                   channels=F.sim_channels(u), max_wall_s=600.0, **u.sim_kw)
-                except Exception as e:  # noqa: BLE001 - one invalid member must not lose the population
-                    self.failures.append(f"{u.key}: {type(e).__name__}: {e}")
-                    continue
-                self.n_sims += len(members)
-                for m, j in enumerate(members):
-                    if bad[j] or status[m] != 0:
-                        continue
-                    s = F.sim_signals(u, ch, m)
-                    rows[j] = F.sim_features(u, s, self.fcfg)
-                    sig[j] = s if keep else None
+        for rows, sig, n_sims, failures in done:
             pcs.append(rows)
             kept.append(sig)
-        out = [Row([pcs[i][j] for i in range(len(self.units))]) for j in range(len(designs))]
+            self.n_sims += n_sims
+            self.failures.extend(failures)
+        out = [Row([pcs[i][j] for i in range(n)]) for j in range(len(designs))]
         return (out, kept) if keep else out
 
     def residual(self, row: Row, boot: list | None = None) -> np.ndarray:
@@ -229,6 +221,63 @@ class Problem:
     def zdiag(self, row: Row) -> np.ndarray:
         """Residual / noise level, feature by feature (for the localised map)."""
         return self.residual(row) / self.sigma
+
+
+def simulate_unit(u, fcfg: dict, var, designs: list, keep: bool = False):
+    """One record for a population of designs (also a worker task: no I/O).
+    Returns (feature rows per design, NaN for failed members; simulated
+    signals per design when ``keep``; simulations run; failure messages)."""
+    ds, bad = [], []
+    for d in designs:
+        try:
+            ds.append(var.apply(d) if var is not None else d)
+            bad.append(False)
+        except (DesignError, ValueError):
+            ds.append(designs[0] if var is None else var.apply(designs[0]))
+            bad.append(True)
+    fs = 1.0 / float(np.mean(np.diff(u.t)))
+    # one batch per pattern of effect switches (effects with states must be alike in a batch)
+    groups: dict = {}
+    for j, d in enumerate(ds):
+        groups.setdefault(tuple(sorted(d.effects.items())), []).append(j)
+    rows = [np.full(u.per_cycle.shape, np.nan) for _ in ds]
+    sig = [None] * len(ds)
+    n_sims, failures = 0, []
+    for members in groups.values():
+        try:
+            _, ch, status = simulate_batch([ds[j] for j in members], u.excitation, u.configuration,
+                                           current=u.current, rate=fs, duration=float(u.t[-1] - u.t[0]),
+                                           channels=F.sim_channels(u), max_wall_s=600.0, **u.sim_kw)
+        except Exception as e:  # noqa: BLE001 - one invalid member must not lose the population
+            failures.append(f"{u.key}: {type(e).__name__}: {e}")
+            continue
+        n_sims += len(members)
+        for m, j in enumerate(members):
+            if bad[j] or status[m] != 0:
+                continue
+            s = F.sim_signals(u, ch, m)
+            rows[j] = F.sim_features(u, s, fcfg)
+            sig[j] = s if keep else None
+    return rows, sig, n_sims, failures
+
+
+def _worker_init() -> None:
+    """Record workers: one numba thread each (the pool supplies the parallelism)."""
+    import numba
+
+    numba.set_num_threads(1)
+
+
+def record_pool(workers: int | None):
+    """A process pool for ``Problem.executor`` (None for one worker)."""
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    if workers <= 1:
+        return None
+    return ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_worker_init)
 
 
 def chi(z: np.ndarray, mask: np.ndarray) -> float:
