@@ -47,7 +47,7 @@ from .design import load as load_design
 from .errors import UserError
 from .excitation import Excitation
 from .io import write_frame
-from .protocols import Run, build_runs, load_all
+from .protocols import Run, build_runs, flow_bench, load_all
 from .sensors import FILTERS, quantise, transducer
 from .simulation import simulate
 from .variants import TOP_MOUNTS, VALVE_DESIGNS, Variant, load_variants
@@ -339,7 +339,7 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
         valve, vcase = VALVE_DESIGNS[case]
         d = variants[vcase].apply(nominal) if vcase else nominal
         runs = [next(r for r in runs if r.bench_valve == valve)]
-        bench = {"bench_volume": pc["volume"], "bench_back_pressure": pc["back_pressure"]}
+        bench = flow_bench(pc)
         extra = {"valve": valve, "valve_design": case}
     elif protocol == "topmount":
         vcase = TOP_MOUNTS[case]

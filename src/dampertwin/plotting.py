@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt
 from . import report
 from .design import load as load_design
 from .io import read_frame, runs
-from .protocols import build_runs, load_all
+from .protocols import build_runs, flow_bench, load_all
 from .variants import VALVE_DESIGNS, load_variant
 
 CURVING_VELOCITIES = (0.1, 0.3, 0.5, 1.0, 1.5)  # subset of the protocol, for speed
@@ -76,7 +76,7 @@ def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: 
         if meas_df is not None:
             meas[valve] = meas_df
         r = report.simulate(design, run.excitation, "valve", bench_valve=valve, rate=run.rate,
-                            bench={"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]})
+                            bench=flow_bench(fb))
         sim[valve] = r.to_frame()
     save(report.pq_figure(meas, sim, f"{case}: flow-bench P-Q (solid measured, dashed simulated)" + tag), "pq")
 

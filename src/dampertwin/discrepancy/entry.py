@@ -14,7 +14,7 @@ from pathlib import Path
 from ..design import ConfigTextError, DesignError, load, yaml_load_file
 from ..errors import UserError
 from ..io import read_frame, runs
-from ..protocols import load_protocol, recording_rates
+from ..protocols import flow_bench, load_protocol, recording_rates
 from ..variants import load_variant
 from . import features as F
 from .workflow import Problem, record_pool, run, verdict_document
@@ -85,8 +85,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         proto_path = conf / "test" / f"{test}.yaml"
         proto = load_protocol(proto_path)
         cfg_name = CONFIGURATIONS[test] or proto["configuration"]
-        bench = ({"bench_volume": float(proto["volume"]), "bench_back_pressure": float(proto["back_pressure"])}
-                 if cfg_name == "valve" else None)
+        bench = flow_bench(proto) if cfg_name == "valve" else None
         for f in files:
             df, meta = read_frame(f, test, current_range=(lo, hi), rate=recording_rates(proto))
             case = f.stem

@@ -131,6 +131,12 @@ def load_protocol(path: str | Path) -> dict:
 
 
 # ------------------------------------------------------------ builders
+def flow_bench(c: dict) -> dict:
+    """``simulate(..., bench=)`` of a flow-bench protocol: its volume [m^3]
+    and back pressure [Pa] (the lab, the plots and the discrepancy workflow)."""
+    return {"bench_volume": float(c["volume"]), "bench_back_pressure": float(c["back_pressure"])}
+
+
 def _flowbench(c, seed):
     runs = []
     for valve, v in c["valves"].items():
