@@ -677,17 +677,52 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         ca = chi(problem.z(fa.S), train) + len(c.params) * math.log(n_tr)
         cb = chi(problem.z(fb.S), train) + (len(c.params) + len(cal_start)) * math.log(n_tr)
         fits[c.name] = fa if ca <= cb else fb
-    # pairs of the best candidates
-    n_pairs = int(prof["candidates"].get("pairs", 0))
-    pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]][:n_pairs]
+    # pairs by forward selection: the lead is the best single fit on training data (penalised chi^2);
+    # its partners are ranked like the first round, on what the lead fit leaves: each other candidate
+    # switched on (typical magnitude) on top of the lead's fitted design, the share of the lead fit's
+    # training residual its signature explains once the calibration and the lead's own directions are
+    # projected out (an effect hidden under a dominant one shows only after the dominant one is fitted)
     def train_chi(n):
         return chi(problem.z(fits[n].S), train)
 
-    for a, b in pairs:
-        pc = Candidate(f"{a.name}+{b.name}", a.effects + b.effects, a.params + b.params, {**a.typical, **b.typical})
-        # forward selection: the partner joins the better single fit (its values, its Jacobian) at its
-        # typical magnitude; its own single-fit values compensated for the lead effect's absence
-        lead = a if train_chi(a.name) <= train_chi(b.name) else b
+    n_pairs = int(prof["candidates"].get("pairs", 0))
+    pairs = []
+    if n_pairs > 0 and top:
+        lead = min(top, key=lambda c: train_chi(c.name) + len(c.params) * math.log(n_tr))
+        lf = fits[lead.name]
+        others, designs2 = [], []
+        for c in cands:
+            if c.name == lead.name:
+                continue
+            try:
+                designs2.append(lf.design.with_overrides(c.overrides()))
+                others.append(c)
+            except DesignError:
+                continue
+        S2 = problem.simulate(designs2, label=f"partner signatures on {lead.name}") if designs2 else []
+        z_lead = problem.z(lf.S)
+        cols = [Jsel[:, i] for i in range(Jsel.shape[1])] + [lf.J[p.key] for p in lead.params if p.key in lf.J]
+        Q2 = np.linalg.qr(np.column_stack(cols)[train])[0] if cols else np.zeros((int(train.sum()), 0))
+        r2 = z_lead[train] - Q2 @ (Q2.T @ z_lead[train])
+        share2 = []
+        for c, row in zip(others, S2):
+            zs = problem.z(row)
+            if not np.all(np.isfinite(zs)):
+                continue
+            s2 = (zs - z_lead)[train]
+            s2 = s2 - Q2 @ (Q2.T @ s2)
+            ss, sr = float(s2 @ s2), float(s2 @ r2)
+            if ss > 0 and sr < 0:
+                share2.append(((sr * sr / ss) / max(float(r2 @ r2), 1e-300), c))
+        share2.sort(key=lambda x: -x[0])
+        log.append(f"partner signatures on the lead fit ({lead.name}): "
+                   + (", ".join(f"{c.name} {e:.2f}" for e, c in share2) or "none explains its residual"))
+        pairs = [(lead, c) for _, c in share2[:n_pairs]]
+
+    for lead, b in pairs:
+        pc = Candidate(f"{lead.name}+{b.name}", lead.effects + b.effects, lead.params + b.params,
+                       {**lead.typical, **b.typical})
+        # the partner joins the lead fit (its values, its Jacobian) at its typical magnitude
         lv = fits[lead.name].values
         start = [FitParam(p.key, p.lo, p.hi, lv.get(p.key, p.start)) for p in pc.params]
         # calibration parameters from the lead fit, else at the design's own values (the lead fitted
