@@ -687,8 +687,17 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
 
     n_pairs = int(prof["candidates"].get("pairs", 0))
     pairs = []
-    if n_pairs > 0 and top:
-        lead = min(top, key=lambda c: train_chi(c.name) + len(c.params) * math.log(n_tr))
+    lead = min(top, key=lambda c: train_chi(c.name) + len(c.params) * math.log(n_tr)) if top else None
+    if n_pairs > 0 and lead is not None:
+        # forward selection stops when the lead fit leaves no disagreement by the same gates as `none`
+        z_l = problem.z(fits[lead.name].S)
+        wz_l, wk_l = worst_record(problem, z_l, allm, alpha) if alpha > 0 else (0.0, "")
+        if (mean_z2(z_l, held) <= float(dcfg["ok_mean_z2"]) and mean_z2(z_l, allm) <= float(dcfg["ok_mean_z2"])
+                and wz_l <= 1.0):
+            log.append(f"the lead fit ({lead.name}) leaves no disagreement (mean z^2 held-out {mean_z2(z_l, held):.2f}, "
+                       f"all {mean_z2(z_l, allm):.2f}; worst record {wk_l} {wz_l:.2f}): no partner is sought")
+            n_pairs = 0
+    if n_pairs > 0 and lead is not None:
         lf = fits[lead.name]
         others, designs2 = [], []
         for c in cands:
