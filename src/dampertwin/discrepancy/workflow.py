@@ -455,27 +455,20 @@ def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: n
     magnitude alone exceeds the gate; otherwise about 1 / sqrt(ratio) x the
     typical magnitude would be needed (signature linear in the magnitude).
     A `none` verdict says nothing about an effect with ratio << 1."""
-    designs, ok = [], []
-    for c in cands:
-        try:
-            designs.append(base.with_overrides(c.overrides()))
-            ok.append(True)
-        except DesignError:
-            designs.append(base)
-            ok.append(False)
-    if not designs:
+    if not cands:
         return []
-    S = problem.simulate(designs, label="resolvability")
+    # a candidate that cannot be switched on gets a NaN row (_rows): ratio None below
+    S = _rows(problem, lambda c: (base.with_overrides(c.overrides()),), base, cands, "resolvability")
     zb = problem.z(S_base)
     allm = problem.mask(None)
     n = J.shape[1]
     A = np.vstack([J, np.eye(n) / prior_sigma]) if n else None
     out = []
-    for c, o, row in zip(cands, ok, S):
+    for c, row in zip(cands, S):
         zs = problem.z(row)
         entry = {"effect": c.name, "ratio": None, "record": "", "resolvable": None,
                  "min_factor": None, "separating_test": separating.get(c.name, separating.get("default", ""))}
-        if o and np.all(np.isfinite(zs)) and np.all(np.isfinite(zb)):
+        if np.all(np.isfinite(zs)) and np.all(np.isfinite(zb)):
             s = zb - zs   # the residual the effect would leave if the model lacked it
             if n:
                 a = np.linalg.lstsq(A, np.concatenate([s, np.zeros(n)]), rcond=None)[0]
