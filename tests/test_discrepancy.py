@@ -254,6 +254,27 @@ def test_flow_bench_records_pin_the_valves(tmp_path):
                          {"flowbench": FLOWBENCH})
 
 
+def test_flow_bench_input_cutoff_is_the_valve_fits_own(tmp_path):
+    """The flow-bench units low-pass the recorded flow with the valve fits'
+    own input_cutoff (conf/calibration/valves.yaml), one value for both; a bad
+    one is an error naming the file and the key."""
+    from dampertwin.discrepancy import features as F
+
+    fits = yaml.safe_load((ROOT / "conf" / "calibration" / "valves.yaml").read_text())["input_cutoff"]
+    assert entry._flow_input_cutoff(ROOT / "conf") == float(fits)
+    (tmp_path / "calibration").mkdir()
+    (tmp_path / "calibration" / "valves.yaml").write_text("input_cutoff: 7.5\n")
+    assert entry._flow_input_cutoff(tmp_path) == 7.5
+    for bad in ("input_cutoff: 0\n", "input_cutoff: fast\n", "shim: []\n"):
+        (tmp_path / "calibration" / "valves.yaml").write_text(bad)
+        with pytest.raises(entry.DiscrepancyError, match="valves.yaml: input_cutoff"):
+            entry._flow_input_cutoff(tmp_path)
+    import pandas as pd
+    frame = pd.DataFrame({"time [s]": np.arange(100) / 1000.0, "flow [m^3/s]": np.zeros(100), "dp [Pa]": np.zeros(100)})
+    with pytest.raises(ValueError, match="flow_cutoff"):
+        F.make_unit("flowbench", "piston_rebound", "piston_rebound", "valve", 1.6, frame, {})
+
+
 def test_record_gate_is_a_bonferroni_chi_square_test():
     """worst_record: under pure noise (whitened residuals N(0, 1)) the
     family-wise false-alarm rate over 15 records of 8-24 features is <= alpha

@@ -86,6 +86,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         proto = load_protocol(proto_path)
         cfg_name = CONFIGURATIONS[test] or proto["configuration"]
         bench = flow_bench(proto) if cfg_name == "valve" else None
+        flow_cut = _flow_input_cutoff(conf) if cfg_name == "valve" else None
         for f in files:
             df, meta = read_frame(f, test, current_range=(lo, hi), rate=recording_rates(proto))
             case = f.stem
@@ -108,7 +109,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
                                                           prof.get("run_filter")):
                     continue
                 u = F.make_unit(test, case, str(name), cfg_name, cur, g, proto.get("sensors", {}), maxd.get(test),
-                                bench=bench, flow_cutoff=float(fcfg.get("flow_input_cutoff", 20.0)))
+                                bench=bench, flow_cutoff=flow_cut)
                 try:
                     F.prepare(u, fcfg)
                 except ValueError as e:
@@ -118,6 +119,19 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         raise DiscrepancyError(f"{measured}: no record of the tests this profile uses "
                                f"({', '.join(k for k, v in want.items() if v)}); present: {', '.join(present)}")
     return units, variants, notes
+
+
+def _flow_input_cutoff(conf: Path) -> float:
+    """[Hz] low-pass of the recorded flow used as the flow-bench input: the valve fits' own value
+    (conf/calibration/valves.yaml ``input_cutoff``), so both see the same input."""
+    path = conf / "calibration" / "valves.yaml"
+    try:
+        value = float(yaml_load_file(path)["input_cutoff"])
+    except (OSError, KeyError, TypeError, ValueError) as e:
+        raise DiscrepancyError(f"{path}: input_cutoff: expected a flow low-pass frequency in Hz ({e})") from None
+    if not value > 0:
+        raise DiscrepancyError(f"{path}: input_cutoff: expected a positive frequency in Hz, got {value}")
+    return value
 
 
 def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 0, progress: bool = True,

@@ -89,7 +89,7 @@ class Unit:
 
 
 def make_unit(test: str, case: str, run: str, configuration: str, current: float, frame, sensors: dict,
-              max_duration: float | None = None, bench: dict | None = None, flow_cutoff: float = 20.0) -> Unit:
+              max_duration: float | None = None, bench: dict | None = None, flow_cutoff: float | None = None) -> Unit:
     """A unit from one run's measured frame (``frame``: time, displacement, force[, rod acceleration];
     flow bench: time, flow, dp with ``run`` the valve, ``bench`` its volume / back pressure and
     ``flow_cutoff`` [Hz] the low-pass of the recorded flow used as input, as in the valve fits)."""
@@ -99,6 +99,8 @@ def make_unit(test: str, case: str, run: str, configuration: str, current: float
         frame = frame[keep]
         t = t[keep]
     if configuration == "valve":
+        if flow_cutoff is None:
+            raise ValueError("a flow-bench unit needs flow_cutoff (the valve fits' input_cutoff)")
         q = frame[FLOW].to_numpy(float)
         ex = Excitation.from_samples(t - t[0], q, kind="flow", cutoff=flow_cutoff)
         meas = {FLOW: q, DP: frame[DP].to_numpy(float)}
