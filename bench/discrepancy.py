@@ -43,7 +43,7 @@ from dampertwin.design import load  # noqa: E402
 from dampertwin.discrepancy import catalogue, entry  # noqa: E402
 from dampertwin.discrepancy.hidden import accelerometer_resonance, hidden_sample, loadcell_crosstalk  # noqa: E402
 from dampertwin.io import read_meta, write_frame  # noqa: E402
-from dampertwin.lab import load_sample, run_lab  # noqa: E402
+from dampertwin.lab import LAB_VERSION, load_sample, run_lab  # noqa: E402
 
 DEV_KEYS = ["piston_rebound.a", "piston_rebound.F_preload", "piston_intake.a", "base_compression.a",
             "base_compression.F_preload", "base_intake.a", "top_mount.k0", "top_mount.c0", "rod_friction.F_c"]
@@ -86,20 +86,30 @@ def one_case(it: dict) -> dict:
     sp.write_text(yaml.safe_dump(s))
     data = work / f"case{k}"
     t1 = time.time()
-    run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=it["lab_workers"], conf=conf)
     art = it["art"]
-    if art is not None:
-        for f in data.glob("*/*.parquet"):
-            df = pq.read_table(f).to_pandas()
-            df = accelerometer_resonance(df, art[1], art[2]) if art[0] == "accel" else loadcell_crosstalk(df, art[1])
-            write_frame(f, df, {**read_meta(f), "artefact": list(art)})
+    # a rerun in the same --work folder reuses a case's lab records when everything that made them is the
+    # same (sample, seed, tests, artefact, LAB_VERSION: a lab code change without a version bump is not
+    # seen, use a new --work then); the stamp is written last, so a killed generation is redone
+    stamp = data / ".case.json"
+    made = json.dumps({"sample": sp.read_text(), "seed": it["seed"], "only": [list(x) for x in it["only"]],
+                       "art": art, "lab": LAB_VERSION}, sort_keys=True)
+    reused = stamp.is_file() and stamp.read_text() == made
+    if not reused:
+        shutil.rmtree(data, ignore_errors=True)
+        run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=it["lab_workers"], conf=conf)
+        if art is not None:
+            for f in data.glob("*/*.parquet"):
+                df = pq.read_table(f).to_pandas()
+                df = accelerometer_resonance(df, art[1], art[2]) if art[0] == "accel" else loadcell_crosstalk(df, art[1])
+                write_frame(f, df, {**read_meta(f), "artefact": list(art)})
+        stamp.write_text(made)
     t_lab = time.time() - t1
     doc = entry.main(str(conf / "design" / "baseline.yaml"), str(data), str(work / f"out{k}"), profile="ci",
                      seed=it["seed"], progress=False, tests=it["tests"], workers=it["lab_workers"])
     rfile = work / f"out{k}" / "resolvability.json"   # written with `none` verdicts
     rs = {r["effect"]: r for r in json.loads(rfile.read_text())} if rfile.is_file() else {}
     return {"cell": it["cell"], "truth": it["truth"], "verdict": doc["verdict"], "effects": doc["effects"],
-            "group": doc["group"], "closed": doc["gap"]["closed_fraction"], "lab_s": round(t_lab, 1),
+            "group": doc["group"], "closed": doc["gap"]["closed_fraction"], "lab_s": round(t_lab, 1), "lab_reused": reused,
             "case_s": round(time.time() - t1, 1),
             # the workflow's own statement that the records could not show the hidden effect
             "truth_unresolvable": [n for n in it["truth"] if rs.get(n, {}).get("resolvable") is False]}

@@ -90,6 +90,21 @@ def test_control_says_none_and_design_round_trips(control, tmp_path):
     assert "What these records can resolve" in (tmp_path / "out" / "report.md").read_text()
 
 
+def test_records_that_cannot_see_an_effect_at_all(control, tmp_path):
+    """Only the compliance record (rod fixed: the top mount's play cannot act): `none`, and the
+    resolvability check says the backlash has no signature at all there (a zero ratio once crashed
+    the decision log)."""
+    only = tmp_path / "m"
+    shutil.copytree(control / "compliance", only / "compliance")
+    doc = entry.main(str(DESIGN), str(only), str(tmp_path / "out"), profile="ci", seed=0, progress=False,
+                     tests={"compliance": ["baseline"]}, workers=1)
+    assert doc["verdict"] == "none", doc
+    rs = {r["effect"]: r for r in json.loads((tmp_path / "out" / "resolvability.json").read_text())}
+    assert rs["top_mount_backlash"]["ratio"] == 0 and rs["top_mount_backlash"]["min_factor"] is None, rs
+    assert rs["top_mount_backlash"]["resolvable"] is False
+    assert "top_mount_backlash 0.00 (no signature at all on these records" in (tmp_path / "out" / "report.md").read_text()
+
+
 def test_record_workers_give_the_same_numbers(control, tmp_path):
     """The records simulated in a 2-process pool (the default on 2 cores) and in this process: same bytes."""
     a = _run(control, tmp_path / "pool", workers=2)

@@ -583,8 +583,10 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         if weak:
             log.append("not resolvable on these records at the typical magnitude (signature beyond the calibration "
                        "pool and bench allowances / the record gate): "
-                       + ", ".join(f"{r['effect']} {r['ratio']:.2f} (needs ~{r['min_factor']:.1f}x; "
-                                   f"{r['separating_test']})" for r in weak))
+                       + ", ".join(f"{r['effect']} {r['ratio']:.2f} ("
+                                   + (f"needs ~{r['min_factor']:.1f}x" if r["min_factor"] is not None
+                                      else "no signature at all on these records")
+                                   + f"; {r['separating_test']})" for r in weak))
 
     def finish(verdict, effects, group, final_design, S_final, overrides):
         zf = problem.z(S_final)
