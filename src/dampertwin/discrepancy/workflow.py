@@ -765,7 +765,10 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     res["fits"] = fits
 
     # 4. Decide on held-out data -----------------------------------------------------
+    from scipy.stats import chi2 as chi2_dist
+
     n_eff = max(problem.n_eff("train"), 2)
+    partner_alpha = float(dcfg.get("partner_alpha", 0.01))
     # reference: the better of the design under test and its calibration refit on held-out data
     ref = cal if chi(z_cal, held) <= chi(z0, held) else Fit("design under test", [], {}, design, S0, {})
     chi_cal_h = chi(problem.z(ref.S), held)
@@ -789,14 +792,19 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
                 log.append(f"{n}: not eligible (no effect of the pair gains alone on held-out data, or the pair "
                            "gains less than its better effect alone)")
                 continue
-            # nested: the partner's own parameters must earn their penalty over the lead + recalibration
+            # nested: the partner's own parameters must earn their penalty over the lead + recalibration,
+            # and their held-out chi^2 drop must be significant as a likelihood-ratio test of nested
+            # models (chi^2 with k_b degrees of freedom at partner_alpha): with few cycles (a record of
+            # single-cycle runs) k ln(cycles) alone is weaker than the chance drop of k_b free parameters
             k_b = max(len(stats[n]["cand"].params) - len(lead.params), 1)
-            nested = chi(problem.z(recal.S), held) - chi(problem.z(fits[n].S), held) - k_b * math.log(n_eff)
+            pen_b = max(k_b * math.log(n_eff), float(chi2_dist.ppf(1.0 - partner_alpha, k_b)))
+            nested = chi(problem.z(recal.S), held) - chi(problem.z(fits[n].S), held) - pen_b
             stats[n]["nested_gain"] = nested
+            stats[n]["nested_penalty"] = pen_b
             if not nested > 0:
                 stats[n]["eligible"] = False
                 log.append(f"{n}: not eligible (the partner gains {nested:.1f} in held-out chi2 after its penalty "
-                           f"over {lead.name} refitted with the re-selected calibration parameters)")
+                           f"{pen_b:.1f} over {lead.name} refitted with the re-selected calibration parameters)")
     rng = np.random.default_rng(seed)
     B = int(prof["bootstrap"])
     names = [n for n in stats if stats[n].get("eligible", True)]
@@ -816,8 +824,8 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         log.append(f"{n}: held-out chi2 gain {st['gain']:.1f} after a penalty of {st['penalty']:.1f} "
                    f"({st['k']} parameter(s) x ln {n_eff} cycles), closes {100 * min(st['closed'], 1.0):.0f} % of the "
                    f"held-out gap left by the {'calibration refit' if ref is cal else 'design under test'}, wins {100 * st['share']:.0f} % of {B} cycle bootstraps"
-                   + (f"; the partner gains {st['nested_gain']:.1f} after its penalty over the lead refitted with the "
-                      "re-selected calibration parameters" if "nested_gain" in st else ""))
+                   + (f"; the partner gains {st['nested_gain']:.1f} after its penalty {st['nested_penalty']:.1f} over the "
+                      "lead refitted with the re-selected calibration parameters" if "nested_gain" in st else ""))
     viable = [n for n in names if stats[n]["gain"] > 0 and stats[n]["closed"] >= float(dcfg["min_closed"])]
     cand_rows = []
     for c, e, _ in ranking:
