@@ -25,6 +25,7 @@ def main() -> None:
     cfg, p2 = profile_block()
     cal = yaml_load_file(CONF / "calibration" / "approach2.yaml")
     rec, proto, mmeta = damper_record("training", p2.runs, p2.get("tail_s"))
+    approach2.input_cutoff(cal, {"training": proto})  # a corner that would filter the motion: a clear error
     src = OUT2 / "sensitivity" / "indices.parquet"
     if not src.is_file():
         raise UserError(f"{src}: not found; run the approach2_sensitivity stage first")

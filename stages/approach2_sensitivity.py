@@ -21,6 +21,7 @@ def main() -> None:
     cfg, p2 = profile_block()
     cal = yaml_load_file(CONF / "calibration" / "approach2.yaml")
     rec, proto, mmeta = damper_record("training", p2.runs, p2.get("tail_s"))
+    approach2.input_cutoff(cal, {"training": proto})  # a corner that would filter the motion: a clear error
     settings = approach2.SensitivitySettings.from_config(cal["sensitivity"], n_base=int(p2.sensitivity.n_base))
     wset = sens.WeightSettings.from_config(cal["weights"])
     seed = seed_for("approach2_sensitivity")

@@ -130,3 +130,24 @@ def test_recovered_valve_parameters_against_the_lab_truth():
     (ROOT / "results/approach2/recovered_vs_truth.md").write_text(
         "Approach 2: recovered parameters vs the virtual lab's hidden truth (test-only read)\n\n"
         + tab.to_markdown(index=False, floatfmt=".4g") + "\n")
+
+
+def test_input_cutoff_keeps_the_motion_and_is_checked():
+    """The training / verification input low-pass must pass the protocols'
+    motion (>= 4x its highest fundamental) and filter at all (< 0.45 fs);
+    the shipped value does both."""
+    cal = yaml_load_file(CONF / "calibration" / "approach2.yaml")
+    tr = load_protocol(CONF / "test" / "training.yaml")
+    ve = load_protocol(CONF / "test" / "verification.yaml")
+    # 1 m/s at 10 mm peak-to-peak: f = v / (pi s) = 31.8 Hz; verification: top band edge 30 Hz
+    assert a2.excitation_fundamental(tr) == pytest.approx(1.0 / (np.pi * 0.01))
+    assert a2.excitation_fundamental(ve) == 30.0
+    c = a2.input_cutoff(cal, {"training": tr, "verification": ve})
+    assert 4 * 31.9 <= c < 0.45 * tr["rate"]
+    with pytest.raises(UserError, match=r"approach2.yaml: input_cutoff = 100 Hz would filter the training motion"):
+        a2.input_cutoff({**cal, "input_cutoff": 100.0}, {"training": tr})
+    with pytest.raises(UserError, match="not below 0.45 x the training sampling rate"):
+        a2.input_cutoff({**cal, "input_cutoff": 2500.0}, {"training": tr})
+    for bad in (-1.0, "200", True, float("nan")):
+        with pytest.raises(UserError, match="expected a positive frequency"):
+            a2.input_cutoff({**cal, "input_cutoff": bad}, {"training": tr})

@@ -89,6 +89,51 @@ def groups_from_config(design: Design, cal: dict) -> tuple[list[GAGroup], GAGrou
     return groups, comp
 
 
+INPUT_CUTOFF_MIN_RATIO = 4.0  # input low-pass corner / highest fundamental of the protocol's motion, at least
+
+
+def excitation_fundamental(protocol: dict) -> float:
+    """Highest fundamental frequency [Hz] of a damper-level protocol's
+    motion: sine bursts (``strokes`` peak-to-peak [m], ``velocities`` peak
+    [m/s]; x = s/2 sin(2 pi f t) -> f = v / (pi s)) or band-limited noise
+    (``bands``: the highest band edge)."""
+    if "bands" in protocol:
+        return float(max(b["band"][1] for b in protocol["bands"]))
+    if "strokes" in protocol and "velocities" in protocol:
+        return float(max(protocol["velocities"]) / (np.pi * min(protocol["strokes"])))
+    if "frequency" in protocol:
+        return float(protocol["frequency"])
+    raise UserError(f"protocol {protocol.get('protocol')!r}: no strokes / velocities, bands or frequency to bound "
+                    "its motion's bandwidth")
+
+
+def input_cutoff(cal: dict, protocols: dict) -> float:
+    """``input_cutoff`` [Hz] of conf/calibration/approach2.yaml, checked
+    against the motion of the damper-level protocols it filters ({name:
+    protocol}): the zero-phase low-pass of the recorded displacement must
+    keep the motion (corner >= INPUT_CUTOFF_MIN_RATIO x its highest
+    fundamental) and stay below 0.45 x the sampling rate (above it
+    ``Excitation.from_samples`` does not filter at all). A corner far above
+    the motion passes the displacement transducer's noise, differentiated
+    into velocity noise that drives the valves (issue 12, the lab's
+    training record, nominal design, three currents: 1 kHz -> 200 Hz cut
+    the residual int |F_meas - F_sim| dt by 25 % and the solver steps 5x)."""
+    c = _need(cal, "input_cutoff", WHERE)
+    if isinstance(c, bool) or not isinstance(c, (int, float)) or not np.isfinite(c) or c <= 0:
+        raise UserError(f"{WHERE}: input_cutoff = {c!r}; expected a positive frequency [Hz]")
+    for name, proto in protocols.items():
+        f = excitation_fundamental(proto)
+        if c < INPUT_CUTOFF_MIN_RATIO * f:
+            raise UserError(f"{WHERE}: input_cutoff = {c:g} Hz would filter the {name} motion itself (highest "
+                            f"fundamental {f:.1f} Hz); expected >= {INPUT_CUTOFF_MIN_RATIO:g} x that, "
+                            f"{INPUT_CUTOFF_MIN_RATIO * f:.0f} Hz")
+        rate = proto.get("rate")
+        if rate is not None and c >= 0.45 * float(rate):
+            raise UserError(f"{WHERE}: input_cutoff = {c:g} Hz is not below 0.45 x the {name} sampling rate "
+                            f"({float(rate):g} Hz): the recorded displacement would not be filtered")
+    return float(c)
+
+
 def check_damper_record(df: pd.DataFrame, where: str, runs_wanted=None, tail_s: float | None = None) -> pd.DataFrame:
     """A damper-level record (training / verification): the columns it needs
     and the runs asked for (``runs_wanted``: labels, None = all); with
@@ -235,4 +280,5 @@ def force_agreement(t: np.ndarray, measured: np.ndarray, simulated: np.ndarray) 
 
 
 __all__ = ["SensitivitySettings", "TrainingProblem", "groups_from_config", "check_damper_record", "damper_cases",
+           "excitation_fundamental", "input_cutoff",
            "sensitivity", "fit", "force_agreement", "VALVES", "COMPLIANCE"]
