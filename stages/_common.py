@@ -152,7 +152,7 @@ def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dic
     start, best_j = res.start_objective, res.best_objective
     improvement = 100 * (1 - best_j / start) if math.isfinite(start) and start > 0 else None
     best = res.best if best is None else best
-    write_overlay(out / "overlay.yaml", {k: v for k, v in best.items() if not k.startswith("sensor.")}, meta)
+    write_overlay(out / "overlay.yaml", design_values(best), meta)
     write_frame(out / "history.parquet",
                 res.history.rename(columns={"best": f"best [{unit}]", "mean": f"mean [{unit}]"}),
                 {**meta, "design_hash": design_hash})

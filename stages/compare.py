@@ -14,6 +14,7 @@ from dampertwin import kpi, report
 from dampertwin.design import yaml_load
 from dampertwin.io import read_frame, runs, write_frame
 from dampertwin.protocols import load_protocol
+from dampertwin.calibration.uncertainty import summary
 from dampertwin.study_report import build_report
 from dampertwin.variants import load_variants
 
@@ -121,10 +122,13 @@ def fit_summary(cfg) -> dict:
     for ov in sorted(OUT.glob("*/**/overlay.yaml")):
         name = str(ov.parent.relative_to(OUT))
         m = json.loads((ov.parent / "metrics.json").read_text())
+        unc = ov.parent / "uncertainty.json"  # written by the fit (calibration.uncertainty at the polished optimum)
+        u = json.loads(unc.read_text()) if unc.is_file() else {}
         fits["fits"][name] = {"values": read_overlay(ov), "objective_start": m["objective_start"],
                               "objective_ga": m.get("objective_ga"), "objective_polished": m.get("objective_polished"),
                               "objective_best": m["objective_best"], "failed_simulations": m["failed_simulations"],
-                              "evaluations": m["evaluations"], "uncertainty": m.get("uncertainty"),
+                              "evaluations": m["evaluations"],
+                              "uncertainty": summary(u) if u.get("parameters") else None,
                               "nuisance": m.get("nuisance", {}), "undetermined": m.get("undetermined")}
     return fits
 

@@ -9,7 +9,6 @@ from _common import (CONF, OUT, baseline, checkpoint, config, design_values, mea
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
-from dampertwin.fitting import study_uncertainty
 from dampertwin.calibration.polish import PolishSettings
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol, recording_rates
@@ -35,11 +34,9 @@ def main() -> None:
                          force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
-    unc = study_uncertainty("compliance", d, design_values(res.best), meas, cutoff=cal["input_cutoff"],
-                            force_bandwidth=res.best.get("sensor.force_bandwidth", bandwidth))
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "N*s", d.hash(), extra={**res.best, "uncertainty": unc})
-        fitted = d.with_overrides({k: v for k, v in res.best.items() if not k.startswith("sensor.")})
+        write_fit(tmp, res, meta, "N*s", d.hash(), extra=dict(res.best))
+        fitted = d.with_overrides(design_values(res.best))
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
         name, g = runs(meas)[-1]
         for label, dd, st in (("nominal", d, ":"), ("fitted", fitted, "--")):

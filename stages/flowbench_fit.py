@@ -6,13 +6,12 @@
 
 import matplotlib.pyplot as plt
 
-from _common import (CONF, OUT, baseline, checkpoint, choice, config, design_values, measured_dir, seed_for, stage,
+from _common import (CONF, OUT, baseline, checkpoint, choice, config, measured_dir, seed_for, stage,
                      staged_dir, write_fit)
 from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
-from dampertwin.fitting import study_uncertainty
 from dampertwin.calibration.polish import PolishSettings
 from dampertwin.io import read_frame
 from dampertwin.simulation import simulate
@@ -37,9 +36,8 @@ def main(name: str) -> None:
                     polish_settings=PolishSettings.from_config(cfg.profile.polish))
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
-    unc = study_uncertainty("valve", d, design_values(res.best), meas, cutoff=cal["input_cutoff"], valve=valve, bench=bench)
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "Pa*s", d.hash(), extra={"uncertainty": unc})
+        write_fit(tmp, res, meta, "Pa*s", d.hash())
         run = next(r for r in build_runs(fb) if r.bench_valve == valve)
         sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate,
                        bench=bench)

@@ -11,7 +11,6 @@ from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
-from dampertwin.fitting import study_uncertainty
 from dampertwin.calibration.polish import PolishSettings
 from dampertwin.io import read_frame, runs
 from dampertwin.protocols import load_protocol, recording_rates
@@ -37,13 +36,9 @@ def main(name: str) -> None:
     best = {**res.best, "top_mount.F_LD": coef}  # sensor.* (nuisance) values are kept out of the overlay
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept}
-    d_fit = d.with_overrides({"top_mount.F_LD": coef})  # the static curve the GA ran with
-    unc = study_uncertainty("topmount", d_fit, design_values(res.best), meas, cutoff=cal["input_cutoff"],
-                            force_bandwidth=res.best.get("sensor.force_bandwidth", bandwidth),
-                            run=cal["dynamic_run"])
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "N*s", d.hash(), best=best, extra={"uncertainty": unc})
-        fitted = d.with_overrides({k: v for k, v in best.items() if not k.startswith("sensor.")})
+        write_fit(tmp, res, meta, "N*s", d.hash(), best=best)
+        fitted = d.with_overrides(design_values(best))
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
         g = dict(runs(meas))["random"]
         m = g["time [s]"] <= g["time [s]"].iloc[0] + 2.0

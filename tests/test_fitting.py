@@ -5,6 +5,7 @@ reports NRMSE per file and intervals; search bounds from the command line."""
 import json
 
 import numpy as np
+from scipy import stats
 import pandas as pd
 import pytest
 
@@ -91,7 +92,12 @@ def test_gauss_newton_interval_on_linear_model():
     r = a * x - y
     ci = gauss_newton_ci(x[:, None], r, ["a"], np.array([a]))
     se = np.sqrt(np.dot(r, r) / (400 - 1) / np.dot(x, x))
-    assert ci["parameters"]["a"]["std"] == pytest.approx(se, rel=0.1)
+    p = ci["parameters"]["a"]
+    assert p["std"] == pytest.approx(se, rel=0.1)
+    t = stats.t.ppf(0.975, ci["n_eff"] - 1)  # Student-t interval on the effective sample size
+    assert p["ci95"] == pytest.approx([a - t * p["std"], a + t * p["std"]], rel=1e-9)
+    assert p["determined"] and ci["undetermined"] == []
+    assert abs(a - 2.0) < p["ci95"][1] - a  # the true slope lies inside
 
 
 def test_study_report_flags_and_html(tmp_path):
@@ -105,9 +111,11 @@ def test_study_report_flags_and_html(tmp_path):
         shutil.copy(src / f, tmp_path / f)
     fits = json.loads((tmp_path / "fits.json").read_text())
     name = next(iter(fits["fits"]))
-    key = next(iter(fits["fits"][name]["values"]))
-    fits["fits"][name]["uncertainty"] = {"parameters": {key: {"std": 1.0, "ci95": [0.0, 2.0], "rel_std": 3.0,
-                                                              "identifiable": False}}}
+    key, key2 = list(fits["fits"][name]["values"])[:2]
+    fits["fits"][name]["uncertainty"] = {"parameters": {
+        key: {"value": 1.0, "ci95": [-2.0, 4.0], "rel_halfwidth": 3.0, "determined": False,
+              "why": "CI half-width 300% of value"},
+        key2: {"value": 1.0, "ci95": [0.9, 1.1], "rel_halfwidth": 0.1, "determined": True, "why": ""}}}
     (tmp_path / "fits.json").write_text(json.dumps(fits))
     # cells well beyond, just beyond and just inside the flag threshold, whatever the committed study says
     t65 = pd.read_parquet(tmp_path / "table_6_5.parquet")
@@ -119,7 +127,9 @@ def test_study_report_flags_and_html(tmp_path):
     t65.to_parquet(tmp_path / "table_6_5.parquet")
     md, html = build_report(tmp_path, measured_label="test data", cases=["baseline_1.6"])
     text = md.read_text()
-    assert "## Flags" in text and f"{name}: {key} poorly identified" in text
+    n = len(fits["fits"][name]["values"])
+    assert "## Flags" in text
+    assert f"{name}: 1 of {n} parameters not determined by the data: {key} (CI half-width 300% of value)\n" in text
     # every table-6.5 cell beyond the threshold compare used is flagged, and no other (the layout has
     # max and min per half-cycle since issue 14)
     for _, r in t65.iterrows():

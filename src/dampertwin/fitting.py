@@ -42,7 +42,6 @@ FRICTION_PARAMS = ("F_c", "F_s", "k_b", "s2", "c_comp", "vd", "a_s", "alpha_s")
 FRICTION_KEYS = {"F_c": "rod_friction.F_c", "F_s": "rod_friction.F_s", "k_b": "rod_friction.k_b",
                  "s2": "constants.s2", "c_comp": "constants.c_comp", "vd": "constants.vd",
                  "a_s": "constants.a_s", "alpha_s": "constants.alpha_s"}
-CI_Z = 1.959963984540054  # two-sided 95 % normal quantile
 DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mutation_probability": 10,
               "max_wall_s": 600.0}  # wall-time cap [s] of one population's simulations (issue 13)
 
@@ -155,50 +154,20 @@ def nrmse(measured: np.ndarray, simulated: np.ndarray) -> float:
     return float(np.sqrt(np.mean((s - m) ** 2)) / rng)
 
 
-def effective_n(residual: np.ndarray) -> float:
-    """Effective sample size of an autocorrelated residual (AR(1)):
-    n (1 - r1) / (1 + r1), r1 the lag-1 autocorrelation (>= 0)."""
-    r = np.asarray(residual, float) - np.mean(residual)
-    n = len(r)
-    den = float(np.dot(r, r))
-    r1 = float(np.dot(r[:-1], r[1:]) / den) if den > 0 and n > 2 else 0.0
-    r1 = min(max(r1, 0.0), 0.999)
-    return max(n * (1 - r1) / (1 + r1), 2.0)
-
-
 def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], values: np.ndarray) -> dict:
-    """Covariance s^2 (J^T J)^-1 at the optimum, s^2 = SSR / (n_eff - p),
-    scaled by n / n_eff for autocorrelated residuals. J: d residual / d
-    parameter (physical units). Returns per-parameter std, 95 % interval and
-    the correlation matrix; 'identifiable' is False for a singular J or a
-    relative std > 1."""
-    n, p = J.shape
-    ne = effective_n(residual)
-    dof = max(ne - p, 1.0)
-    s2 = float(np.dot(residual, residual)) / n * ne / dof  # per-sample variance, bias-corrected on n_eff
-    col = np.linalg.norm(J, axis=0)
-    col[col == 0] = 1.0
-    Js = J / col
-    JtJ = Js.T @ Js
-    cond = float(np.linalg.cond(JtJ)) if p else 1.0
-    try:
-        cov = np.linalg.pinv(JtJ, rcond=1e-12) / np.outer(col, col) * s2 * (n / ne)
-    except np.linalg.LinAlgError:
-        cov = np.full((p, p), np.nan)
-    std = np.sqrt(np.clip(np.diag(cov), 0, None))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = cov / np.outer(std, std)
-    out = {"method": "Gauss-Newton covariance s^2 (J^T J)^-1 at the optimum, residual autocorrelation "
-                     "accounted for by an effective sample size (AR(1)); 95 % normal intervals",
-           "n": n, "n_effective": ne, "condition_number": cond, "parameters": {}, "correlation": {}}
-    for i, k in enumerate(names):
-        rel = float(std[i] / abs(values[i])) if values[i] != 0 else float("inf")
-        out["parameters"][k] = {"value": float(values[i]), "std": float(std[i]),
-                                "ci95": [float(values[i] - CI_Z * std[i]), float(values[i] + CI_Z * std[i])],
-                                "rel_std": rel, "identifiable": bool(np.isfinite(rel) and rel < 1.0
-                                                                     and col[i] > 0 and cond < 1e12)}
-        out["correlation"][k] = {kk: (float(corr[i, j]) if np.isfinite(corr[i, j]) else None)
-                                 for j, kk in enumerate(names)}
+    """Intervals of a fit from its residual Jacobian ``J`` (d residual / d
+    parameter, physical units) at the optimum ``values``: the project's one
+    uncertainty analysis (:func:`dampertwin.calibration.uncertainty.analyse`:
+    Gauss-Newton covariance, AR(1) effective sample size, Student-t 95 %
+    intervals, undetermined parameters) in the report form of
+    :func:`~dampertwin.calibration.uncertainty.summary`, plus each
+    parameter's standard deviation [its unit]."""
+    from .calibration.uncertainty import analyse, summary
+
+    u = analyse(J, residual, list(names), np.asarray(values, float))
+    out = summary(u.to_dict())
+    for row in u.table.to_dict(orient="records"):
+        out["parameters"][row["parameter"]]["std"] = row["std (fitted coord.)"]  # coordinates = physical here
     return out
 
 
@@ -636,37 +605,6 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
                       fixed_overrides=fixed)
 
 
-def study_uncertainty(submodel: str, design: Design, best: dict, measured: pd.DataFrame, *, cutoff: float,
-                      valve: str | None = None, bench: dict | None = None, force_bandwidth: float | None = None,
-                      run: str | None = None, specs=None) -> dict:
-    """Gauss-Newton intervals of a study fit (stages/*_fit.py) at its optimum
-    ``best`` (design overrides), on the same record and input filtering as
-    calibration/approach1: valve (flow bench), compliance, or topmount
-    (the record's run ``run``)."""
-    from .calibration.approach1 import _Channel, _record_input, _through_sensor
-
-    cases = []
-    if submodel == "valve":
-        for _, g in runs(measured):
-            t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
-            cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
-        ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"),
-                      lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
-        prob = _Problem(design, "valve", ch, [("record", cases)], {"bench": bench} if bench else {})
-    else:
-        col, cfg = ("rod force [N]", "damper") if submodel == "compliance" else ("top mount force [N]", "topmount")
-        for name, g in runs(measured):
-            if run is not None and name != run:
-                continue
-            t, ex = _record_input(g, "displacement [m]", "displacement", cutoff)
-            extra = {"current": float(g["current [A]"].iloc[0])} if submodel == "compliance" else {}
-            cases.append((t, g["force [N]"].to_numpy(), ex, extra))
-        fs = 1.0 / (cases[0][0][1] - cases[0][0][0])
-        prob = _Problem(design, cfg, _through_sensor(col, force_bandwidth, fs), [("record", cases)], {})
-    ci, _ = _jacobian_ci(prob, {k: float(v) for k, v in best.items()}, specs)
-    return ci
-
-
 def _specs(d: Design, items, prefix: str, where: str):
     from .calibration.approach1 import specs_from_config
 
@@ -712,5 +650,5 @@ def run_fit_cli(args) -> Path:
 
 
 __all__ = ["FitError", "lugre_force", "simulate_friction", "record_velocity", "fit_friction", "fit_valve",
-           "fit_compliance", "fit_topmount", "study_uncertainty", "coulomb_viscous_fit", "nrmse", "gauss_newton_ci", "effective_n",
+           "fit_compliance", "fit_topmount", "coulomb_viscous_fit", "nrmse", "gauss_newton_ci",
            "parse_param_args"]

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from .calibration.uncertainty import CORR_MAX, REL_CI_MAX
+
 PEAK_FLAG_PCT = 10.0  # |diff| [%] flagged in table 6.5
 PSD_FLAG_DB = 3.0     # |diff| [dB] flagged in table 6.6
 CASE_PLOTS = ("monosine", "psd")
@@ -53,7 +55,8 @@ def _flag_rows(t: pd.DataFrame, cols: list[str], limit: float, unit: str) -> tup
 
 
 def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[str]]:
-    """One row per fitted parameter: value, std, 95 % interval, identifiable."""
+    """One row per fitted parameter: value, 95 % interval, relative
+    half-width, determined (calibration.uncertainty, via fits.json)."""
     rows, flags = [], []
     for name, f in fits.get("fits", {}).items():
         unc = (f.get("uncertainty") or {}).get("parameters", {})
@@ -61,14 +64,16 @@ def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[str]]:
             flags.append(f"{name}: {f['failed_simulations']} failed simulations during the GA")
         if f.get("objective_best", 0) >= f.get("objective_start", math.inf):
             flags.append(f"{name}: the fit did not lower its objective")
+        bad = [f"{k} ({u['why']})" for k, u in unc.items() if k in f.get("values", {}) and not u["determined"]]
+        if bad:
+            flags.append(f"{name}: {len(bad)} of {len(f.get('values', {}))} parameters not determined by the data: "
+                         + "; ".join(bad))
         for key, value in f.get("values", {}).items():
             u = unc.get(key)
-            if u is not None and not u["identifiable"]:
-                flags.append(f"{name}: {key} poorly identified (relative std {u['rel_std']:.2g})")
             rows.append({"fit": name, "parameter": key, "value": value,
-                         "std": None if u is None else u["std"],
                          "95 % interval": None if u is None else u["ci95"],
-                         "identifiable": "-" if u is None else ("yes" if u["identifiable"] else "**no**")})
+                         "rel. half-width [%]": None if u is None else 100 * u["rel_halfwidth"],
+                         "determined": "-" if u is None else ("yes" if u["determined"] else "**no**")})
     return pd.DataFrame(rows), flags
 
 
@@ -92,14 +97,16 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
         md += [f"Measurements: {measured_label}.", ""]
     md += ["Thesis chapter 6: valve fits on the flow bench, compliance fit, top-mount fits, then the calibrated "
            "model against the measured mono-sine and random tests. Diff % = (measured - simulated) / measured "
-           "x 100; diff dB = simulated - measured. Intervals: Gauss-Newton covariance at the GA optimum from the "
-           "residual Jacobian, corrected for autocorrelated residuals (effective sample size) - approximate, "
-           "local, and conditional on the model being right.", ""]
+           "x 100; diff dB = simulated - measured. Intervals: linearised 95 % (Student t) from the residual "
+           "Jacobian at the polished optimum, corrected for autocorrelated residuals (effective sample size) - "
+           "approximate, local, and conditional on the model being right (each fit's uncertainty.md has the "
+           "correlations).", ""]
     md += ["## Flags", ""]
     all_flags = flags65 + flags66 + fit_flags
     md += [f"- {f}" for f in all_flags] or ["- none"]
-    md += ["", f"Thresholds: |peak diff| > {peak_pct:g} %, |PSD diff| > {psd_db:g} dB, relative std > 1 "
-           "or a singular Jacobian = poorly identified.", ""]
+    md += ["", f"Thresholds: |peak diff| > {peak_pct:g} %, |PSD diff| > {psd_db:g} dB, a parameter is not "
+           f"determined when its interval half-width exceeds {REL_CI_MAX:.0%} of its value, it correlates with "
+           f"another beyond |{CORR_MAX}|, or it loads a singular direction of the Jacobian.", ""]
     md += ["## Summary metrics", "", _md_table(pd.DataFrame(
         [{"metric": k, "mean abs diff": v["mean_abs"], "max abs diff": v["max_abs"]} for k, v in metrics.items()
          if isinstance(v, dict) and "mean_abs" in v])), ""]
@@ -113,7 +120,7 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
     if len(obj):
         md += [_md_table(obj), ""]
     if len(fr):
-        if fr["std"].isna().all():
+        if fr["95 % interval"].isna().all():
             md += ["(no intervals recorded for these fits: rerun the fit stages to compute them)", ""]
         md += [_md_table(fr), ""]
     md += ["## Plots", "", "### Fits", ""]

@@ -161,3 +161,21 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
                      "determined": not why, "why": "; ".join(why)})
     return Uncertainty(pd.DataFrame(rows), pd.DataFrame(corr, index=list(names), columns=list(names)), cov, n,
                        n_eff, s2, rel_sv)
+
+
+METHOD = ("linearised least squares at the optimum: covariance s^2 (J^T J)^+ n / n_eff from the residual Jacobian, "
+          "n_eff the AR(1) effective sample size of the residuals; 95 % Student-t intervals "
+          "(calibration.uncertainty)")
+
+
+def summary(u: dict) -> dict:
+    """The form every fit report uses (study ``fits.json``, ``dampertwin fit``
+    ``fit.json``) of an :meth:`Uncertainty.to_dict`: per parameter its value,
+    95 % interval, relative half-width, ``determined`` and why not; the
+    undetermined list, the sample sizes and the correlations."""
+    params = {r["parameter"]: {"value": r["value"], "ci95": [r["ci95 low"], r["ci95 high"]],
+                               "rel_halfwidth": r["rel. half-width [%]"] / 100.0, "determined": bool(r["determined"]),
+                               "why": r["why"]} for r in u["parameters"]}
+    return {"method": METHOD, "n_samples": u["n_samples"], "n_eff": u["n_eff"], "parameters": params,
+            "undetermined": list(u["undetermined"]), "correlation": u["correlation"]}
+
