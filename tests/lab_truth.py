@@ -42,3 +42,26 @@ def objective_at_truth(records, specs, case: str | None, sample: str | Path = "s
     """A fit's eq. 6.x objective with every fitted quantity at the lab truth."""
     tv = true_values([s.key for s in specs], case, sample)
     return float(records.objective(np.array([[tv[s.key] for s in specs]]))[0])
+
+
+def stiffness(x, pre, a, b, c, d):
+    """Shim / intake valve spring force [N] at lift x [m] (thesis eq. 4.24)."""
+    return pre + a * (np.exp(b * x) - 1) + c * (np.exp(d * x) - 1)
+
+
+def stiffness_curve_error(fitted, real, valve: str) -> float:
+    """Largest |F_fitted - F_real| / F_real of a valve's stiffness curve over
+    the lift range the real valve reaches on the flow bench (protocol
+    conf/test/flowbench.yaml); ``fitted`` and ``real`` are designs."""
+    from dampertwin.protocols import build_runs, load_protocol
+    from dampertwin.simulation import simulate
+
+    fb = load_protocol(ROOT / "conf" / "test" / "flowbench.yaml")
+    bench = {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
+    run = next(r for r in build_runs(fb) if r.bench_valve == valve)
+    lift = simulate(real, run.excitation, "valve", bench_valve=valve, rate=run.rate, bench=bench)["lift [m]"]
+    x = np.linspace(0.0, float(np.nanmax(lift)), 200)
+    g_r, g_f = real.group(valve), fitted.group(valve)
+    F_r = stiffness(x, g_r["F_preload"], g_r["a"], g_r["b"], g_r["c"], g_r["d"])
+    F_f = stiffness(x, g_f["F_preload"], g_f["a"], g_f["b"], g_f["c"], g_f["d"])
+    return float(np.max(np.abs(F_f - F_r) / F_r))
