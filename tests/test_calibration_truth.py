@@ -50,11 +50,11 @@ def lab(request, tmp_path_factory):
 
 def _report(res, sample):
     jt = objective_at_truth(res.records, res.specs, None, sample)
-    tv = true_values([s.key for s in res.specs], None, sample)
+    tv = true_values([s.key for s in res.specs if s.key != "sensor.force_offset"], None, sample)
     print(f"{sample}: GA {res.objective_ga:.4g}, polished {res.best_objective:.4g}, truth {jt:.4g}, "
           f"ratio {res.best_objective / jt:.3f}")
     for k, v in res.best.items():
-        print(f"  {k}: fitted {v:.5g}, truth {tv[k]:.5g}")
+        print(f"  {k}: fitted {v:.5g}, truth {tv.get(k, float('nan')):.5g}")
     return jt, tv
 
 
@@ -83,7 +83,7 @@ def test_valve_fit_reaches_the_truths_objective(lab, valve):
     assert {p["parameter"] for p in res.uncertainty["parameters"]} == set(res.best)
 
 
-def test_top_mount_fit_reaches_the_truths_objective_and_finds_the_bandwidth(lab):
+def test_top_mount_fit_reaches_the_truths_objective_and_finds_the_force_chain(lab):
     sample, measured = lab
     d = load(ROOT / "conf" / "design" / "baseline.yaml")
     cal = yaml_load((ROOT / "conf" / "calibration" / "topmount.yaml").read_text())
@@ -93,9 +93,20 @@ def test_top_mount_fit_reaches_the_truths_objective_and_finds_the_bandwidth(lab)
                               force_bandwidth=documented)
     jt, tv = _report(res, sample)
     assert res.best_objective <= RATIO_MAX * jt
-    # the fitted corner is that of a 2nd-order Butterworth; the lab's real load
-    # cell is another filter (e.g. 4th-order Bessel), so only its range can match
-    assert res.best["sensor.force_bandwidth"] == pytest.approx(tv["sensor.force_bandwidth"], rel=0.3)
+    # the lab's load cell is another filter (4th-order Bessel at 1.3 kHz, 3rd-order
+    # Butterworth at 800 Hz) than the documented one: its extra low-frequency delay
+    assert res.best["sensor.force_delay"] == pytest.approx(tv["sensor.force_delay"], abs=30e-6)
+    # a stiffness / damping the fit says it determines is within 15 % of the
+    # real one; one it marks undetermined (e.g. an equally good optimum
+    # elsewhere, calibration.uncertainty.other_optima) has an interval that
+    # covers the real one
+    rows = {p["parameter"]: p for p in res.uncertainty["parameters"]}
     for k in ("top_mount.k0", "top_mount.k1", "top_mount.c1"):
-        assert res.best[k] == pytest.approx(tv[k], rel=0.15), k
+        r = rows[k]
+        print(f"  {k}: {'determined' if r['determined'] else 'NOT determined'}, "
+              f"95 % [{r['ci95 low']:.4g}, {r['ci95 high']:.4g}], truth {tv[k]:.4g}")
+        if r["determined"]:
+            assert res.best[k] == pytest.approx(tv[k], rel=0.15), k
+        else:
+            assert r["ci95 low"] <= tv[k] <= r["ci95 high"], k
     assert np.isfinite(res.uncertainty["n_eff"])

@@ -169,3 +169,99 @@ def test_fit_cli_valve_reports_nrmse_and_intervals(tmp_path):
     u = doc["uncertainty"]["parameters"]["piston_intake.a"]
     assert u["ci95"][0] < doc["parameters"]["piston_intake.a"] < u["ci95"][1]
     assert list(out.glob("valve_*.png"))
+
+
+def _top_mount_record(tmp_path, offset: float, design_overrides: dict):
+    """A top-mount record simulated from the baseline (SYNTHETIC): 2 s of a
+    5 Hz + 60 Hz displacement, force through the documented 1 kHz load cell
+    plus a zero offset [N]."""
+    from conftest import BASELINE
+    from dampertwin.design import load
+    from dampertwin.excitation import Excitation
+    from dampertwin.sensors import sensor_lowpass
+    from dampertwin.simulation import simulate
+
+    fs = 5000.0
+    t = np.arange(0, 2.0 + 0.5 / fs, 1 / fs)
+    x = 5e-4 * np.sin(2 * np.pi * 5 * t) * np.minimum(t / 0.2, 1) + 2e-5 * np.sin(2 * np.pi * 60 * t)
+    ex = Excitation.from_samples(t, x)
+    r = simulate(load(BASELINE).with_overrides(design_overrides), ex, "topmount", rate=fs)
+    F = sensor_lowpass(r.to_frame()["top mount force [N]"].to_numpy()[:len(t)], 1000.0, fs) + offset
+    return write_frame(tmp_path / "tm.parquet", pd.DataFrame({"time [s]": t, "displacement [m]": x, "force [N]": F}),
+                       {"synthetic": True})
+
+
+def test_fit_cli_top_mount_fits_the_load_cell_zero(tmp_path):
+    """The bench's load-cell zero is a fitted nuisance (issue 14): a record
+    with a 6 N offset and a 20 % stiffer k0 gives back the offset and k0;
+    the design overlay carries no sensor.* key."""
+    rec = _top_mount_record(tmp_path, 6.0, {"top_mount.k0": 1.44e6})
+    out = tmp_path / "fit"
+    assert main(["fit", "topmount", "--data", str(rec), "--out", str(out), "--param", "k0=6e5:2.4e6:log",
+                 "--param", "sensor.force_offset=-20:20", "--population", "16", "--generations", "20"]) == 0
+    doc = json.loads((out / "fit.json").read_text())
+    assert doc["parameters"]["sensor.force_offset"] == pytest.approx(6.0, abs=1.5)
+    assert doc["parameters"]["top_mount.k0"] == pytest.approx(1.44e6, rel=0.05)
+    assert not any(k.startswith("sensor.") for k in doc["overrides"])
+
+
+def test_fit_cli_top_mount_default_search_space_runs(tmp_path):
+    """Without --bounds / --param the study's search space (with its
+    sensor.* nuisance keys) is used: it must run, not refuse the bandwidth."""
+    rec = _top_mount_record(tmp_path, 0.0, {})
+    out = tmp_path / "fit"
+    assert main(["fit", "topmount", "--data", str(rec), "--out", str(out), "--population", "4",
+                 "--generations", "1"]) == 0
+    doc = json.loads((out / "fit.json").read_text())
+    assert {"sensor.force_delay", "sensor.force_offset", "top_mount.k1"} <= set(doc["parameters"])
+
+
+def test_static_curve_drops_the_bench_zero():
+    """thesis 7.2 least-squares curve with the bench's zero: a cubic curve
+    plus a 5 N offset gives back the cubic (no even terms bent to absorb it)."""
+    from dampertwin.calibration.approach1 import fit_static_curve
+
+    X = 1.5e-3 * np.sin(np.linspace(0, 2 * np.pi, 801))
+    F = 8e5 * X + 9e10 * X**3 + 5.0
+    c = fit_static_curve(pd.DataFrame({"run": "static", "displacement [m]": X, "force [N]": F}), "static", 5)
+    assert c[0] == pytest.approx(8e5, rel=1e-6) and c[2] == pytest.approx(9e10, rel=1e-6)
+    assert abs(c[1]) * 1.5e-3**2 < 1e-6 and abs(c[3]) * 1.5e-3**4 < 1e-6
+
+
+def test_static_curve_subtracts_the_rubber_hysteresis():
+    """A 0.025 Hz triangle on the baseline top mount (SYNTHETIC) still holds
+    the rubber's relaxation forces: plain least squares flattens the cubic
+    term; with the modelled dynamics subtracted the design's curve returns."""
+    from conftest import BASELINE
+    from dampertwin.calibration.approach1 import fit_static_curve
+    from dampertwin.design import load
+    from dampertwin.excitation import Excitation
+    from dampertwin.simulation import simulate
+
+    d = load(BASELINE)
+    fs = 200.0
+    t = np.arange(0, 40.0 + 0.5 / fs, 1 / fs)
+    x = 1.5e-3 * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * t / 40.0))
+    F = simulate(d, Excitation.from_samples(t, x), "topmount", rate=fs).to_frame()["top mount force [N]"].to_numpy()
+    rec = pd.DataFrame({"run": "static", "time [s]": t, "displacement [m]": x, "force [N]": F[:len(t)] + 4.0})
+    true = list(d["top_mount.F_LD"])
+    plain = fit_static_curve(rec, "static", 5)
+    corrected = fit_static_curve(rec, "static", 5, d, 20.0)
+    assert abs(plain[2] / true[2] - 1) > 0.1
+    assert corrected[2] == pytest.approx(true[2], rel=0.02) and corrected[0] == pytest.approx(true[0], rel=0.01)
+
+
+def test_sensor_delay_shifts_a_sine_by_the_delay():
+    """sensors.sensor_delay: a 300 Hz sine at 5 kHz, 0.17 ms (0.85 samples)
+    later, equals the analytic delayed sine to 0.2 % of its amplitude;
+    a negative delay advances it."""
+    from dampertwin.sensors import sensor_delay
+
+    fs, f = 5000.0, 300.0
+    t = np.arange(0, 0.2, 1 / fs)
+    x = np.sin(2 * np.pi * f * t)
+    inner = slice(10, -10)
+    for d in (1.7e-4, -2.3e-4):
+        y = sensor_delay(x, d, fs)
+        assert np.max(np.abs(y[inner] - np.sin(2 * np.pi * f * (t[inner] - d)))) < 2e-3
+    assert sensor_delay(x, 0.0, fs) is x

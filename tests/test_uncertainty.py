@@ -94,3 +94,28 @@ def test_fd_jacobian_of_a_nonlinear_residual_and_log_mapping():
     u = analyse(J, 0.01 * rng.standard_normal(50), ["a", "k"], np.log(x), to_value=lambda j, v: np.exp(v))
     row = u.table.iloc[0]
     assert row["value"] == pytest.approx(2.0) and row["ci95 low"] < 2.0 < row["ci95 high"]
+
+
+def test_other_optima_widen_the_interval_and_mark_the_parameter():
+    """y = t^2 x + noise has two optima t = +-1 with equal residuals: the
+    linearised interval at t = +1 misses t = -1; other_optima stretches it
+    over -1 and marks t undetermined, while an end point far outside the
+    joint 95 % region (t = 0, no fit) changes nothing."""
+    from dampertwin.calibration.uncertainty import other_optima
+
+    x = np.linspace(0, 1, N)
+    y = 1.0 * x + 0.05 * rng.standard_normal(N)
+    t_hat = np.sqrt((x @ y) / (x @ x))  # least squares in t^2
+    r = y - t_hat**2 * x
+    u = analyse((-2 * t_hat * x)[:, None], r, ["t"], np.array([t_hat]), n_eff=N).to_dict()
+    u["markdown"] = "# local\n"
+    assert u["parameters"][0]["determined"] and u["parameters"][0]["ci95 low"] > 0
+    ssr = float(r @ r)
+    w = other_optima(u, [({"t": -t_hat}, ssr, 1.0), ({"t": 0.0}, float(y @ y), 9.0)])
+    row = w["parameters"][0]
+    assert row["ci95 low"] == pytest.approx(-t_hat) and not row["determined"]
+    assert "another optimum" in row["why"] and w["undetermined"] == ["t"] and len(w["other_optima"]) == 1
+    assert "Other optima" in w["markdown"]
+    # only the far end point: nothing changes
+    v = other_optima(u, [({"t": 0.0}, float(y @ y), 9.0)])
+    assert v["parameters"][0] == u["parameters"][0] and v["other_optima"] == []

@@ -352,16 +352,24 @@ def _default_design() -> Path:
 class _Problem:
     """Records of one submodel test -> batch residuals of a design population."""
 
-    def __init__(self, design: Design, configuration: str, channel, cases_per_file: list, sim_kw: dict):
+    def __init__(self, design: Design, configuration: str, channel, cases_per_file: list, sim_kw: dict,
+                 nuisance: dict | None = None):
         self.design, self.configuration, self.channel = design, configuration, channel
         self.files = cases_per_file  # [(path, [(t, measured, excitation, extra), ...]), ...]
         self.sim_kw = sim_kw
+        self.nuisance = dict(nuisance or {})  # nominal values of fitted sensor.* keys (the bench's chain)
+
+    def nominal(self, key: str) -> float:
+        """Start value of a fitted key: the design's, or a sensor.* key's documented one."""
+        return float(self.nuisance[key]) if key.startswith("sensor.") else float(self.design[key])
 
     def simulate(self, rows: list[dict], which=None):
         """{file index: [array(m, n_t) per case]} for designs with overrides ``rows``."""
         from .simulation import simulate_batch
 
-        designs = [self.design.with_overrides(r) for r in rows]
+        designs = [self.design.with_overrides({k: v for k, v in r.items() if not k.startswith("sensor.")})
+                   for r in rows]
+        nuis = {k: np.array([r[k] for r in rows], float) for k in (rows[0] if rows else {}) if k.startswith("sensor.")}
         out = {}
         for fi, (_, cases) in enumerate(self.files):
             if which is not None and fi not in which:
@@ -371,7 +379,7 @@ class _Problem:
                 _, ch, status = simulate_batch(designs, ex, self.configuration, rate=1.0 / (t[1] - t[0]),
                                                duration=t[-1] - t[0], channels=list(self.channel.sources),
                                                **self.sim_kw, **extra)
-                sim = np.asarray(self.channel(ch), float)[:, : len(t)]
+                sim = np.asarray(self.channel(ch, nuis), float)[:, : len(t)]
                 sim[status != 0] = np.nan
                 out[fi].append(sim)
         return out
@@ -421,7 +429,7 @@ def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, setting
     from .calibration.ga import Evaluator, run_ga
 
     keys = [s.key for s in specs]
-    x0 = {k: float(problem.design[k]) for k in keys}
+    x0 = {k: problem.nominal(k) for k in keys}
     res = run_ga(specs, Evaluator(problem.objective(keys)), settings, seed, x0=x0, label=label)
     ci, sims = _jacobian_ci(problem, dict(res.best), specs)
     files = {}
@@ -434,7 +442,7 @@ def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, setting
               "objective": {"name": extra_meta.get("objective_name", "int |measured - simulated| dt"),
                             "start": res.start_objective, "best": res.best_objective,
                             "evaluations": res.evaluations, "failed_simulations": res.failed},
-              "parameters": dict(res.best), "overrides": {**(fixed_overrides or {}), **res.best},
+              "parameters": dict(res.best), "overrides": {**(fixed_overrides or {}), **{k: v for k, v in res.best.items() if not k.startswith("sensor.")}},
               "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs}, "uncertainty": ci, "files": files,
               "nrmse": files[str(problem.files[0][0])]["nrmse"],
               "optimizer": f"GA (pygad) population {settings.population}, {settings.generations} generations, "
@@ -532,7 +540,8 @@ def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, conf
 
     d, cfg = _load(design), dict(config or {})
     items = bounds or cfg.get("parameters") or _study_items("compliance.yaml", "parameters")
-    specs = _specs(d, items, "", cfg.get("_where", "compliance search space"))
+    nuis = _documented_force_chain(cfg, "compliance.yaml")
+    specs = _specs(d, items, "", cfg.get("_where", "compliance search space"), nuis)
     cutoff = float(cfg.get("input_cutoff", 1000.0))
     files = []
     for p in [data, *predict]:
@@ -543,8 +552,8 @@ def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, conf
             cases.append((t, g["force [N]"].to_numpy(), ex, {"current": cur}))
         files.append((str(p), cases))
     fs = 1.0 / (files[0][1][0][0][1] - files[0][1][0][0][0])
-    ch = _through_sensor("rod force [N]", cfg.get("force_bandwidth"), fs)
-    prob = _Problem(d, "damper", ch, files, {})
+    ch = _through_sensor("rod force [N]", nuis["sensor.force_bandwidth"], fs)
+    prob = _Problem(d, "damper", ch, files, {}, nuis)
 
     def plots(o, problem, sims):
         _series_plots(o, problem, sims, "rod force [N]", "compliance")
@@ -565,7 +574,8 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
 
     d, cfg = _load(design), dict(config or {})
     items = bounds or cfg.get("parameters") or _study_items("topmount.yaml", "parameters")
-    specs = _specs(d, items, "top_mount.", cfg.get("_where", "top-mount search space"))
+    nuis = _documented_force_chain(cfg, "topmount.yaml")
+    specs = _specs(d, items, "top_mount.", cfg.get("_where", "top-mount search space"), nuis)
     cutoff = float(cfg.get("input_cutoff", 500.0))
     meas0 = _read(data, "topmount")
     static = cfg.get("static") or {}
@@ -576,7 +586,7 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
     for p in [data, *predict]:
         cases = []
         for name, g in runs(_read(p, "topmount")):
-            if (want and name not in want) or (not want and name == static.get("run")):
+            if (want and name not in want) or (not want and static.get("run") is not None and name == static["run"]):
                 continue
             t, ex = _record_input(g, "displacement [m]", "displacement", cutoff)
             cases.append((t, g["force [N]"].to_numpy(), ex, {}))
@@ -584,18 +594,19 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
             raise FitError(f"{p}: no record to fit (runs {names}; config runs {want})")
         files.append((str(p), cases))
     fs = 1.0 / (files[0][1][0][0][1] - files[0][1][0][0][0])
-    ch = _through_sensor("top mount force [N]", cfg.get("force_bandwidth"), fs)
+    ch = _through_sensor("top mount force [N]", nuis["sensor.force_bandwidth"], fs)
     kept = "design"
-    if static.get("run") in names:
-        coef = fit_static_curve(meas0, static["run"], int(static.get("order", 5)))
+    if static.get("run") is not None and static["run"] in names:
+        coef = fit_static_curve(meas0, static["run"], int(static.get("order", 5)), d,
+                                float(static.get("input_cutoff", 20.0)))
         keys = [s.key for s in specs]
-        row = {k: float(d[k]) for k in keys}
+        row = {k: _Problem(d, "topmount", ch, [], {}, nuis).nominal(k) for k in keys}
         j_nom = _Problem(d, "topmount", ch, files[:1], {}).objective(keys)(np.array([list(row.values())]))[0]
         d_ls = d.with_overrides({"top_mount.F_LD": coef})
         j_ls = _Problem(d_ls, "topmount", ch, files[:1], {}).objective(keys)(np.array([list(row.values())]))[0]
         if j_ls <= j_nom:
             d, fixed, kept = d_ls, {"top_mount.F_LD": coef}, "least squares"
-    prob = _Problem(d, "topmount", ch, files, {})
+    prob = _Problem(d, "topmount", ch, files, {}, nuis)
 
     def plots(o, problem, sims):
         _series_plots(o, problem, sims, "top mount force [N]", "topmount")
@@ -605,11 +616,30 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
                       fixed_overrides=fixed)
 
 
-def _specs(d: Design, items, prefix: str, where: str):
+def _documented_force_chain(cfg: dict, protocol_file: str) -> dict:
+    """Nominal values of the force chain's nuisance keys: the load cell's
+    bandwidth [Hz] (``force_bandwidth`` of the search config, else the
+    repository's documented bench, conf/test/<protocol_file> ``sensors.force``)
+    with no extra delay [s] and a zero offset [N] of 0 (a tared bench)."""
+    bw = cfg.get("force_bandwidth")
+    if bw is None:
+        try:
+            from .config import repo_root
+            from .protocols import ProtocolError, load_protocol
+
+            bw = load_protocol(repo_root() / "conf" / "test" / protocol_file).get("sensors", {}).get("force")
+        except (FileNotFoundError, OSError, ProtocolError):
+            bw = None
+    from .calibration.approach1 import _force_chain_nominal
+
+    return _force_chain_nominal(None if bw is None else float(bw))
+
+
+def _specs(d: Design, items, prefix: str, where: str, nuisance: dict | None = None):
     from .calibration.approach1 import specs_from_config
 
     try:
-        return specs_from_config(d, list(items), prefix=prefix, where=where)
+        return specs_from_config(d, list(items), prefix=prefix, where=where, nuisance=nuisance)
     except ValueError as e:
         raise FitError(str(e)) from None
 

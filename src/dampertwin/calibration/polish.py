@@ -25,7 +25,7 @@ from typing import Callable
 import numpy as np
 
 from .ga import FitResult, ParamSpec
-from .uncertainty import analyse, fd_jacobian
+from .uncertainty import analyse, fd_jacobian, other_optima
 
 F_SCALE_FRACTION = 0.1  # soft_l1 f_scale as a fraction of the median |weighted residual| at the start
 
@@ -99,10 +99,13 @@ def _starts(top: list[np.ndarray], n: int, min_distance: float) -> list[np.ndarr
 
 
 def polish(records: Records, specs: list[ParamSpec], res: FitResult, settings: PolishSettings,
-           label: str = "polish", progress: bool = True) -> FitResult:
-    """Least-squares polish of ``res`` from its best distinct members; the
+           label: str = "polish", progress: bool = True, nominal: dict | None = None) -> FitResult:
+    """Least-squares polish of ``res`` from its best distinct members and,
+    with ``nominal`` (key -> value, e.g. the drawings), from there too; the
     result's ``best`` / ``best_objective`` are replaced only by a point with
-    a lower eq. 6.x objective. ``res.polish`` reports every start."""
+    a lower eq. 6.x objective. ``res.polish`` reports every start. Every
+    other end point inside the best's joint 95 % confidence region widens
+    the uncertainty report (:func:`uncertainty.other_optima`)."""
     from scipy.optimize import least_squares
     from tqdm import tqdm
 
@@ -113,6 +116,11 @@ def polish(records: Records, specs: list[ParamSpec], res: FitResult, settings: P
         return R
 
     starts = _starts(res.top, settings.starts, settings.min_distance)
+    if nominal is not None:
+        g_nom = np.array([s.to_gene(nominal[s.key]) for s in specs])
+        if all(np.linalg.norm(g_nom - g) >= settings.min_distance for g in starts):
+            starts.append(g_nom)
+    ends = []
     report = {"method": "scipy least_squares trf, soft_l1 loss, bounded in gene space", "starts": []}
     best_g = np.array([s.to_gene(res.best[s.key]) for s in specs])
     best_j = res.best_objective
@@ -139,6 +147,8 @@ def polish(records: Records, specs: list[ParamSpec], res: FitResult, settings: P
         report["starts"].append({"objective_start": j0, "objective_end": j, "nfev": int(sol.nfev),
                                  "njev": int(sol.njev or 0), "status": int(sol.status)})
         res.evaluations += int(sol.nfev) + int(sol.njev or 0) * (len(specs) + 1) + 2
+        if np.isfinite(j):
+            ends.append((np.clip(sol.x, 0, 1), j))
         if np.isfinite(j) and j < best_j:
             best_j, best_g = j, np.clip(sol.x, 0, 1)
     report["objective_ga"] = res.objective_ga
@@ -147,6 +157,12 @@ def polish(records: Records, specs: list[ParamSpec], res: FitResult, settings: P
     res.best = {s.key: float(v) for s, v in zip(specs, values(specs, best_g[None, :])[0])}
     res.best_objective = best_j
     res.uncertainty = uncertainty_at(records, specs, best_g, settings.step)
+    if "error" not in res.uncertainty and ends:
+        G = np.array([g for g, _ in ends])
+        R = np.asarray(records.residuals(values(specs, G)), float)
+        alt = [(dict(zip([s.key for s in specs], v)), float(r @ r), j)
+               for v, r, (_, j) in zip(values(specs, G), R, ends) if np.all(np.isfinite(r))]
+        res.uncertainty = other_optima(res.uncertainty, alt)
     return res
 
 

@@ -163,9 +163,53 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
                        n_eff, s2, rel_sv)
 
 
+def other_optima(u: dict, ends: list[tuple[dict, float, float]], level: float = 0.95) -> dict:
+    """Widen a local analysis (:meth:`Uncertainty.to_dict`, at the best
+    point) by other local optima the multi-start search found: an end point
+    (values by name, sum of squared residuals, eq. 6.x objective) whose
+    residual sum exceeds the best's by less than s^2 (n / n_eff)
+    chi2_p(level) lies inside the joint confidence region (Bates & Watts
+    1988, sec. 2.1.3, in effective samples) although the linearised
+    interval cannot reach it: the data cannot tell the two apart. Each
+    parameter's interval is stretched to cover such optima; one that leaves
+    the local interval marks the parameter as not determined."""
+    u = {**u, "parameters": [dict(r) for r in u["parameters"]]}
+    n, n_eff, s2, p = u["n_samples"], u["n_eff"], u["residual_variance"], len(u["parameters"])
+    ssr_best = s2 * max(n - p, 1)
+    limit = float(stats.chi2.ppf(level, p))
+    inside = []
+    for vals, ssr, j in ends:
+        x = (ssr - ssr_best) / s2 * n_eff / n if s2 > 0 else np.inf
+        moved = [r["parameter"] for r in u["parameters"]
+                 if not r["ci95 low"] <= vals[r["parameter"]] <= r["ci95 high"]]
+        if x <= limit and moved:
+            inside.append({"values": dict(vals), "objective": j, "chi2": x, "outside_local_interval": moved})
+    for r in u["parameters"]:
+        for o in inside:
+            v = o["values"][r["parameter"]]
+            if not r["ci95 low"] <= v <= r["ci95 high"]:
+                r["ci95 low"], r["ci95 high"] = min(r["ci95 low"], v), max(r["ci95 high"], v)
+                r["determined"] = False
+                why = f"another optimum inside the joint {level:.0%} region at {v:.4g}"
+                r["why"] = "; ".join(filter(None, [r["why"], why]))
+                r["rel. half-width [%]"] = 100 * 0.5 * (r["ci95 high"] - r["ci95 low"]) / abs(r["value"]) \
+                    if r["value"] != 0 else np.inf
+    u["other_optima"] = inside
+    u["undetermined"] = [r["parameter"] for r in u["parameters"] if not r["determined"]]
+    if inside and "markdown" in u:
+        lines = [f"\nOther optima of the multi-start search inside the joint {level:.0%} confidence region "
+                 f"(chi2 {limit:.1f} with {p} parameters, in effective samples): the data cannot tell them from "
+                 f"the best, and the intervals above are widened to cover them.\n"]
+        for o in inside:
+            lines.append(f"- objective {o['objective']:.4g}, chi2 {o['chi2']:.1f}: "
+                         + ", ".join(f"{k} {o['values'][k]:.4g}" for k in o["outside_local_interval"]))
+        u["markdown"] = u["markdown"] + "\n".join(lines) + "\n"
+    return u
+
+
 METHOD = ("linearised least squares at the optimum: covariance s^2 (J^T J)^+ n / n_eff from the residual Jacobian, "
-          "n_eff the AR(1) effective sample size of the residuals; 95 % Student-t intervals "
-          "(calibration.uncertainty)")
+          "n_eff the AR(1) effective sample size of the residuals; 95 % Student-t intervals, widened to cover "
+          "other optima of the multi-start polish inside the joint 95 % region (calibration.uncertainty)")
 
 
 def summary(u: dict) -> dict:
@@ -177,5 +221,6 @@ def summary(u: dict) -> dict:
                                "rel_halfwidth": r["rel. half-width [%]"] / 100.0, "determined": bool(r["determined"]),
                                "why": r["why"]} for r in u["parameters"]}
     return {"method": METHOD, "n_samples": u["n_samples"], "n_eff": u["n_eff"], "parameters": params,
-            "undetermined": list(u["undetermined"]), "correlation": u["correlation"]}
+            "undetermined": list(u["undetermined"]), "correlation": u["correlation"],
+            "other_optima": len(u.get("other_optima", []))}
 
