@@ -2,16 +2,17 @@
 hidden truth on the shipped sample (conf/lab/sample.yaml) and on a second
 one with other deviations and bench bandwidths 20 % off their datasheet
 (conf/lab/sample2.yaml): after GA + local polish every fit ends within 1.2x
-the eq. 6.x objective of the true parameters (issue 14). On lab 2 the truth
-is evaluated through the documented sensor chain, which is not the lab's,
-so fits end below it (ratio 0.12-0.9); the stiffness-curve, preload and
-top-mount parameter checks are the ones that can fail.
+the eq. 6.x objective of the true parameters (issue 14). On lab 2 a valve's
+truth is evaluated through the documented sensor chain, which is not the
+lab's, so valve fits end below it (ratio 0.12-0.9); the top mount's truth
+carries the lab's force-chain delay and the best zero offset (ratio ~0.88).
+The stiffness-curve, preload and top-mount parameter checks are the ones
+that can fail.
 
-Slow (minutes): runs only with DAMPERTWIN_SLOW=1."""
+Slow (about 5 min on the 2-core machine): marked ``slow``; CI runs it."""
 
 from __future__ import annotations
 
-import os
 import shutil
 
 import numpy as np
@@ -27,8 +28,7 @@ from dampertwin.lab import generate
 from dampertwin.protocols import load_protocol
 from lab_truth import objective_at_truth, stiffness_curve_error, true_design, true_values
 
-pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif(not os.environ.get("DAMPERTWIN_SLOW"), reason="slow: set DAMPERTWIN_SLOW=1")]
+pytestmark = pytest.mark.slow
 
 GA = GASettings(population=10, reproduction_ratio=80, generations=4, mutation_probability=10)
 POLISH = PolishSettings(starts=2, max_nfev=15)
