@@ -55,7 +55,7 @@ def true_design(case: str | None, sample: str | Path = "sample.yaml"):
     return sample_design(d, s), s
 
 
-def true_values(keys, case: str | None, sample: str | Path = "sample.yaml") -> dict[str, float]:
+def true_values(keys, case: str | None, sample: str | Path = "sample.yaml", protocol: str = "topmount") -> dict[str, float]:
     """The lab sample's true value of each fitted key (``sensor.*``: the
     bench's real transducer bandwidth)."""
     d, s = true_design(case, sample)
@@ -63,20 +63,21 @@ def true_values(keys, case: str | None, sample: str | Path = "sample.yaml") -> d
         raise KeyError(f"{OFFSET}: no single true value; objective_at_truth finds the truth's best")
     def sensor(k):
         if k == "sensor.force_delay":
-            return true_force_delay(sample)
+            return true_force_delay(sample, protocol)
         return float(_sensor_specs(s["benches"])[SENSOR_COLUMNS[k]]["corner"])
 
     return {k: sensor(k) if k.startswith("sensor.") else float(d[k]) for k in keys}
 
 
-def objective_at_truth(records, specs, case: str | None, sample: str | Path = "sample.yaml") -> float:
+def objective_at_truth(records, specs, case: str | None, sample: str | Path = "sample.yaml",
+                       protocol: str = "topmount") -> float:
     """A fit's eq. 6.x objective with every fitted quantity at the lab truth.
     A fitted load-cell zero (``sensor.force_offset``) has no single true
     value (the static curve's fitted zero absorbs part of the bench's
     offsets): it takes the one that is best for the truth, the weighted
     median of the truth's residual (the minimiser of sum w |e - c|)."""
     keys = [s.key for s in specs]
-    row = np.array([[true_values([k], case, sample)[k] if k != OFFSET else 0.0 for k in keys]])
+    row = np.array([[true_values([k], case, sample, protocol)[k] if k != OFFSET else 0.0 for k in keys]])
     if OFFSET in keys:
         e = records.residuals(row)[0]
         order = np.argsort(e)
