@@ -43,7 +43,7 @@ from dampertwin.design import load  # noqa: E402
 from dampertwin.discrepancy import catalogue, entry  # noqa: E402
 from dampertwin.discrepancy.hidden import accelerometer_resonance, hidden_sample, loadcell_crosstalk  # noqa: E402
 from dampertwin.io import read_meta, write_frame  # noqa: E402
-from dampertwin.lab import LAB_VERSION, load_sample, run_lab  # noqa: E402
+from dampertwin.lab import LAB_VERSION, TRUTH_ATOL, TRUTH_RTOL, load_sample, run_lab  # noqa: E402
 
 DEV_KEYS = ["piston_rebound.a", "piston_rebound.F_preload", "piston_intake.a", "base_compression.a",
             "base_compression.F_preload", "base_intake.a", "top_mount.k0", "top_mount.c0", "rod_friction.F_c"]
@@ -88,11 +88,12 @@ def one_case(it: dict) -> dict:
     t1 = time.time()
     art = it["art"]
     # a rerun in the same --work folder reuses a case's lab records when everything that made them is the
-    # same (sample, seed, tests, artefact, LAB_VERSION: a lab code change without a version bump is not
-    # seen, use a new --work then); the stamp is written last, so a killed generation is redone
+    # same (sample, seed, tests, artefact, LAB_VERSION, truth tolerances: a lab code change without a version
+    # bump is not seen, use a new --work then); the stamp is written last, so a killed generation is redone
     stamp = data / ".case.json"
     made = json.dumps({"sample": sp.read_text(), "seed": it["seed"], "only": [list(x) for x in it["only"]],
-                       "art": art, "lab": LAB_VERSION}, sort_keys=True)
+                       "art": art, "lab": LAB_VERSION, "truth": [TRUTH_RTOL, TRUTH_ATOL]},
+                      sort_keys=True)
     reused = stamp.is_file() and stamp.read_text() == made
     if not reused:
         shutil.rmtree(data, ignore_errors=True)

@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from dampertwin.lab import APPROACH2_TESTS, TRUTH_RTOL, plan, run_lab
+from dampertwin.lab import APPROACH2_TESTS, TRUTH_ATOL, TRUTH_RTOL, plan, run_lab
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
@@ -42,7 +42,7 @@ def main() -> None:
     a = ap.parse_args()
     tests = a.tests.split(",") if a.tests else None
     items = plan(CONF)
-    out = {"truth_rtol": TRUTH_RTOL, "workers": a.workers}
+    out = {"truth_rtol": TRUTH_RTOL, "truth_atol": TRUTH_ATOL, "workers": a.workers}
     with tempfile.TemporaryDirectory() as tmp:
         c0, w0 = children_cpu() + self_cpu(), time.perf_counter()
         files = run_lab(CONF / "lab" / "sample.yaml", tmp, tests=tests, conf=CONF, workers=a.workers, progress=False)

@@ -46,6 +46,37 @@ def test_lab_is_deterministic_labelled_synthetic_and_carries_the_sample_hash(tmp
         read_frame(p, proto)  # passes the same checks as real data
 
 
+def test_truth_absolute_floor_keeps_the_record_far_below_noise_and_resolution():
+    """TRUTH_ATOL (1e-6 state scales) against the tight floor 1e-8 on 2 s of
+    the module random test: the recorded channels move by far less than the
+    shipped sensors' noise and resolution (< 1/20 of a converter step),
+    while a loose floor would not."""
+    from dampertwin.protocols import build_runs, load_all
+    from dampertwin.simulation import simulate
+
+    sample = load_sample(SAMPLE)
+    part = sample_design(load(NOMINAL), sample)
+    run = next(r for r in build_runs(load_all(CONF / "test")["random"], 0) if math.isclose(r.current, 1.6))
+    a = sample["benches"]["actuator"]
+    ex = actuate(run.excitation, a["gain"], a["delay"], a.get("natural_frequency"), a.get("damping"))
+
+    def rec(atol):
+        r = simulate(part, ex, "module", current=1.6, rate=run.rate, duration=2.0, rtol=labmod.TRUTH_RTOL, atol=atol)
+        assert r.ok
+        return r["rod force [N]"], r["rod acceleration [m/s^2]"], r.stats.accepted
+
+    F0, A0, n0 = rec(1e-8)
+    F1, A1, n1 = rec(labmod.TRUTH_ATOL)
+    sens = sample["benches"]["sensors"]
+    for d, ch in ((np.abs(F1 - F0).max(), "force [N]"), (np.abs(A1 - A0).max(), "rod acceleration [m/s^2]")):
+        floor = min(sample["benches"]["noise"][ch], sens[ch].get("resolution", np.inf))
+        assert d < 0.05 * floor, (ch, d, floor)  # < 1/20 of a converter step
+    assert n1 < 0.7 * n0  # the reason for the floor: fewer steps
+    F2, A2, _ = rec(1e-3)  # a loose floor is seen by the same check
+    assert np.abs(F2 - F0).max() > 0.05 * min(sample["benches"]["noise"]["force [N]"],
+                                              sens["force [N]"].get("resolution", np.inf))
+
+
 def _force_rms_residual(df, design, current):
     """RMS of measured - simulated force, the simulation driven by the
     recorded displacement and seen through the DOCUMENTED load cell."""
