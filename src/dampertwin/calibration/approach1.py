@@ -157,7 +157,7 @@ def _records(design: Design, specs, cases, configuration: str, channel, max_wall
         R[[j for j in range(n) if reasons[j] is not None]] = np.nan
         return R, reasons
 
-    return Records(residuals, np.concatenate([trapezoid_weights(c[0]) for c in cases]))
+    return Records(residuals, np.concatenate([trapezoid_weights(c[0]) for c in cases]), [len(c[0]) for c in cases])
 
 
 def _batch_objective(design: Design, specs, cases, configuration: str, channel, max_wall_s: float | None = None,

@@ -53,11 +53,13 @@ class Records:
     e = measured - simulated, concatenated over records, and the eq. 6.x
     objective sum_i w_i |e_i| (trapezoid weights w_i [s])."""
 
-    def __init__(self, residuals: Callable, weights: np.ndarray):
+    def __init__(self, residuals: Callable, weights: np.ndarray, blocks: list[int] | None = None):
         # (m, k) parameter values -> (m, n) residuals with NaN rows for failures,
-        # or (residuals, reason per row) to say why a row failed
+        # or (residuals, reason per row) to say why a row failed; ``blocks``: the
+        # records' lengths in that order (the uncertainty's batches do not span two)
         self._residuals = residuals
         self.weights = np.asarray(weights, float)
+        self.blocks = None if blocks is None else [int(b) for b in blocks]
 
     def evaluate(self, X: np.ndarray) -> tuple[np.ndarray, list]:
         out = self._residuals(np.atleast_2d(X))
@@ -172,5 +174,6 @@ def uncertainty_at(records: Records, specs: list[ParamSpec], g: np.ndarray, step
     e0, J = fd_jacobian(lambda G: records.residuals(values(specs, G)), g, step, np.zeros_like(g), np.ones_like(g))
     if not (np.all(np.isfinite(J)) and np.all(np.isfinite(e0))):
         return {"error": "a simulation failed at or next to the optimum: no Jacobian"}
-    u = analyse(J, e0, [s.key for s in specs], g, to_value=lambda j, x: values([specs[j]], np.atleast_1d(x)[:, None])[0, 0])
+    u = analyse(J, e0, [s.key for s in specs], g, to_value=lambda j, x: values([specs[j]], np.atleast_1d(x)[:, None])[0, 0],
+                blocks=getattr(records, "blocks", None))
     return {**u.to_dict(), "markdown": u.to_markdown("Identifiability and uncertainty")}

@@ -17,6 +17,20 @@ n (1 - rho) / (1 + rho) (Bayley & Hammersley 1946; von Storch & Zwiers,
 caller knows better (e.g. the number of test cycles). 95 % intervals use
 Student's t with n_eff - p degrees of freedom.
 
+The AR(1) factor is one number for all parameters, but a misfit the model
+cannot follow (a bench or physics difference) is slow and correlated
+where one parameter's sensitivity is and not another's: the intervals
+then flatter some parameters many times over. Each interval is therefore
+also computed from the batch-means sandwich covariance
+A^+ S A^+ (A = J^T J, S the covariance of the score sums J_b^T r_b over
+``BATCHES`` contiguous batches; White 1982, Econometrica 50:1-25, for the
+misspecified-model sandwich; Ibragimov & Mueller 2010, J. Bus. Econ.
+Stat. 28:453-468, for batches and t with B - 1 dof), and the wider of the
+two is reported (the sandwich alone is biased low when few batches see
+very different inputs, e.g. smooth regressors). Neither covers a bias: a model error the data prefer to
+the truth moves the optimum itself (README, "What the intervals do not
+cover").
+
 A parameter the data cannot determine is flagged when its interval
 half-width exceeds ``rel_ci_max`` of its value, when it correlates with
 another beyond ``corr_max``, or when it loads a near-singular direction of
@@ -36,6 +50,7 @@ REL_CI_MAX = 1.0   # CI half-width / |value| above which a parameter is undeterm
 CORR_MAX = 0.95    # |correlation| above which a pair is not separately identifiable
 SV_MIN = 1e-6      # singular value / largest singular value of the scaled Jacobian: a singular direction
 NULL_LOADING = 0.3  # |component| of a parameter in a singular direction that flags it
+BATCHES = 10       # contiguous batches of the score series for the sandwich covariance (min 2 samples each)
 
 
 def effective_sample_size(r: np.ndarray) -> float:
@@ -93,26 +108,59 @@ class Uncertainty:
 
         t = self.table.copy()
         t["determined"] = np.where(t["determined"], "yes", "**NO**")
-        cols = ["parameter", "value", "ci95 low", "ci95 high", "rel. half-width [%]", "max |corr|", "with",
-                "determined", "why"]
+        cols = ["parameter", "value", "ci95 low", "ci95 high", "rel. half-width [%]", "sandwich / AR(1)",
+                "max |corr|", "with", "determined", "why"]
         md = f"# {title}\n\n{to_markdown(t[cols], digits=4)}\n"
         md += (f"Linearised 95 % intervals (Student t, {self.n_eff - len(t):.0f} dof) from the Jacobian of the "
                f"residuals at the optimum; residual variance {self.s2:.4g} per sample over {self.n} samples, "
-               f"effective sample size {self.n_eff:.0f} (AR(1) of the residuals). Undetermined: half-width > "
+               f"effective sample size {self.n_eff:.0f} (AR(1) of the residuals), or from the batch-means sandwich "
+               f"covariance over {BATCHES} batches (t with B - 1 dof), whichever is wider: the column "
+               f"'sandwich / AR(1)' is their ratio, > 1 where a slow misfit the model cannot follow loads that "
+               f"parameter. Intervals are statistical: a bias from a model or bench error that the data prefer "
+               f"to the truth is not in them. Undetermined: half-width > "
                f"{REL_CI_MAX:.0%} of the value, |corr| > {CORR_MAX}, or a singular direction "
                f"(singular value ratio < {SV_MIN:g}).\n\nCorrelations:\n\n"
                + to_markdown(self.correlation.reset_index(names="parameter"), digits=2))
         return md
 
 
+def batches(n: int, blocks: Sequence[int] | None = None, count: int = BATCHES) -> list[np.ndarray]:
+    """Sample indices of ``count`` contiguous batches of an n-sample series
+    made of records of lengths ``blocks`` (one record if None): each record
+    gets batches in proportion to its length (at least one), so no batch
+    spans two records."""
+    blocks = [n] if blocks is None else [int(b) for b in blocks]
+    if sum(blocks) != n or any(b < 1 for b in blocks):
+        raise ValueError(f"record lengths {blocks} do not add up to the {n} residual samples")
+    out, start = [], 0
+    for b in blocks:
+        k = max(1, min(b // 2, int(round(count * b / n))))
+        out.extend(np.array_split(np.arange(start, start + b), k))
+        start += b
+    return out
+
+
+def sandwich_covariance(Js: np.ndarray, r: np.ndarray, inv: np.ndarray, groups: list[np.ndarray]) -> np.ndarray:
+    """Batch-means sandwich A^+ S A^+ (scaled coordinates): ``inv`` = A^+,
+    S = B/(B-1) sum_b (g_b - mean g)(g_b - mean g)^T with g_b = J_b^T r_b.
+    Centred: the thesis' objectives are L1, so sum_b g_b need not vanish."""
+    G = np.array([Js[i].T @ r[i] for i in groups])
+    Gc = G - G.mean(axis=0)
+    B = len(groups)
+    return inv @ (B / max(B - 1, 1) * Gc.T @ Gc) @ inv
+
+
 def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
             to_value: Callable[[int, np.ndarray], np.ndarray] | None = None, n_eff: float | None = None,
-            rel_ci_max: float = REL_CI_MAX, corr_max: float = CORR_MAX, sv_min: float = SV_MIN) -> Uncertainty:
+            rel_ci_max: float = REL_CI_MAX, corr_max: float = CORR_MAX, sv_min: float = SV_MIN,
+            blocks: Sequence[int] | None = None, robust: bool = True) -> Uncertainty:
     """Covariance, 95 % intervals, correlations and identifiability flags of
     parameters ``x`` (fitted coordinates, e.g. genes) with residuals ``r``
     (n,) and Jacobian ``J`` (n, p). ``to_value(j, u)`` maps coordinate j to
     the physical value (intervals are mapped end point by end point, so a
-    log-scaled parameter gets an asymmetric interval); identity if None."""
+    log-scaled parameter gets an asymmetric interval); identity if None.
+    ``blocks``: lengths of the records concatenated in ``r`` (batches do not
+    span two); ``robust=False`` reports the AR(1) intervals alone."""
     J, r, x = np.asarray(J, float), np.asarray(r, float), np.asarray(x, float)
     n, p = J.shape
     to_value = to_value or (lambda j, u: u)
@@ -138,11 +186,21 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
     corr = np.where(np.isfinite(corr), corr, 0.0)
     np.fill_diagonal(corr, 1.0)
     tq = float(stats.t.ppf(0.975, n_eff - p))
+    half_w = tq * sd                                       # AR(1) half-widths, fitted coordinates
+    ratio = np.ones(p)
+    if robust:
+        groups = batches(n, blocks)
+        if len(groups) >= 3:
+            sd_rob = np.sqrt(np.maximum(np.diag(sandwich_covariance(Js, r, inv, groups)), 0)) / scale
+            half_rob = float(stats.t.ppf(0.975, len(groups) - 1)) * sd_rob
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ratio = np.where(half_w > 0, half_rob / half_w, 1.0)
+            half_w = np.where(np.isfinite(sd), np.maximum(half_w, half_rob), np.inf)
     rows = []
     for j, name in enumerate(names):
         v = float(to_value(j, np.array(x[j])))
-        lo, hi = (float(to_value(j, np.array(x[j] - tq * sd[j]))), float(to_value(j, np.array(x[j] + tq * sd[j])))) \
-            if np.isfinite(sd[j]) else (-np.inf, np.inf)
+        lo, hi = (float(to_value(j, np.array(x[j] - half_w[j]))), float(to_value(j, np.array(x[j] + half_w[j])))) \
+            if np.isfinite(half_w[j]) else (-np.inf, np.inf)
         half = 0.5 * (hi - lo)
         rel = half / abs(v) if v != 0 else np.inf
         oc = np.abs(corr[j]).copy()
@@ -157,6 +215,7 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
             why.append(f"|corr| {oc[k]:.3f} with {names[k]}")
         rows.append({"parameter": name, "value": v, "ci95 low": lo, "ci95 high": hi,
                      "rel. half-width [%]": 100 * rel, "std (fitted coord.)": float(sd[j]),
+                     "sandwich / AR(1)": float(ratio[j]),
                      "max |corr|": float(oc[k]) if p > 1 else 0.0, "with": names[k] if p > 1 else "",
                      "determined": not why, "why": "; ".join(why)})
     return Uncertainty(pd.DataFrame(rows), pd.DataFrame(corr, index=list(names), columns=list(names)), cov, n,
@@ -208,7 +267,9 @@ def other_optima(u: dict, ends: list[tuple[dict, float, float]], level: float = 
 
 
 METHOD = ("linearised least squares at the optimum: covariance s^2 (J^T J)^+ n / n_eff from the residual Jacobian, "
-          "n_eff the AR(1) effective sample size of the residuals; 95 % Student-t intervals, widened to cover "
+          "n_eff the AR(1) effective sample size of the residuals, or the batch-means sandwich covariance "
+          f"({BATCHES} batches), whichever is wider; 95 % Student-t intervals (statistical only: a bias from a model "
+          "or bench error is not in them), widened to cover "
           "other optima of the multi-start polish inside the joint 95 % region (calibration.uncertainty)")
 
 
