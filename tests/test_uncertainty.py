@@ -181,3 +181,66 @@ def test_sandwich_equals_the_least_squares_covariance_on_white_noise():
         th, r = _fit(D @ THETA + 0.3 * local.standard_normal(N), D)
         mean += sandwich_covariance(D, r, Ainv, groups) / 400
     np.testing.assert_allclose(np.diag(mean), 0.09 * np.diag(Ainv), rtol=0.1)
+
+
+def test_central_jacobian_is_exact_on_cubics_and_estimates_its_error():
+    """r = a^3 t + a b - 3 b^2: the Richardson-extrapolated central quotient
+    is exact for a cubic, and E = J_h - J_2h = -h^2 r_aaa / 2 = -3 h^2 t for
+    a, 0 for b (a curvature alone does not enter E). At a bound the column
+    is one-sided of second order: error -h^2 r_aaa / 3, E = h^2 r_aaa."""
+    from dampertwin.calibration.uncertainty import central_jacobian
+
+    t = np.linspace(0, 1, 30)
+
+    def res(X):
+        return np.array([x[0] ** 3 * t + x[0] * x[1] - 3 * x[1] ** 2 for x in X])
+
+    x = np.array([0.7, -0.4])
+    exact = np.column_stack([3 * x[0] ** 2 * t + x[1], np.full_like(t, x[0] - 6 * x[1])])
+    h = 1e-2
+    r0, J, E = central_jacobian(res, x, h)
+    np.testing.assert_allclose(r0, res(x[None, :])[0])
+    np.testing.assert_allclose(J, exact, atol=1e-10)
+    np.testing.assert_allclose(E, np.column_stack([-3 * h**2 * t, np.zeros_like(t)]), atol=1e-10)
+    _, J1, E1 = central_jacobian(res, x, h, lo=np.array([0.69, -1.0]), hi=np.array([1.0, 1.0]))  # a near its bound
+    np.testing.assert_allclose(J1[:, 0], exact[:, 0] - 2 * h**2 * t, atol=1e-10)
+    np.testing.assert_allclose(E1[:, 0], 6 * h**2 * t, atol=1e-10)
+    np.testing.assert_allclose(J1[:, 1], exact[:, 1], atol=1e-10)
+
+
+def test_a_direction_below_the_jacobians_error_is_not_resolved():
+    """y = a u + b (u + 1e-3 v): only a + b is well determined, a - b rests on
+    a small singular value. A residual with solver-like jitter (a
+    deterministic, rough function of the parameters, 1e-6 of the signal)
+    gives finite-difference quotients whose error swamps that singular value:
+    without the error estimate the pseudo-inverse turns the noise into
+    narrow intervals for a and b; with it both are reported not resolved,
+    while a noise-free residual keeps them finite."""
+    from dampertwin.calibration.uncertainty import central_jacobian
+
+    u = np.sin(2 * np.pi * 3 * XS)
+    v = np.cos(2 * np.pi * 5 * XS)
+    D = np.column_stack([u, u + 1e-3 * v])
+    y = D @ np.array([1.0, 2.0]) + 0.01 * rng.standard_normal(N)
+    th, _ = _fit(y, D)
+
+    def residuals(jitter):
+        def f(X):  # the jitter: a pattern drawn from the parameter values' bytes (each point its own)
+            X = np.atleast_2d(X)
+            rough = np.array([np.random.default_rng(list(x.view(np.uint32))).standard_normal(N) for x in X])
+            return y[None, :] - X @ D.T + jitter * rough
+        return f
+
+    names = ["a", "b"]
+    r0, J, E = central_jacobian(residuals(1e-6), th, 1e-4)
+    noisy_flagged = analyse(J, r0, names, th, jac_error=E).table.set_index("parameter")
+    noisy_blind = analyse(J, r0, names, th).table.set_index("parameter")
+    r0c, Jc, Ec = central_jacobian(residuals(0.0), th, 1e-4)
+    clean = analyse(Jc, r0c, names, th, jac_error=Ec).table.set_index("parameter")
+    for k in names:
+        assert not np.isfinite(noisy_flagged.loc[k, "ci95 high"]) and "not resolved" in noisy_flagged.loc[k, "why"]
+        assert np.isfinite(noisy_blind.loc[k, "ci95 high"])          # the failure mode the floor removes
+        assert np.isfinite(clean.loc[k, "ci95 high"])
+    # the clean intervals are the true least-squares ones, which the blind noisy ones understate
+    assert (noisy_blind.loc["a", "ci95 high"] - noisy_blind.loc["a", "ci95 low"]
+            < 0.5 * (clean.loc["a", "ci95 high"] - clean.loc["a", "ci95 low"]))

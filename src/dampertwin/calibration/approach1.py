@@ -23,7 +23,7 @@ from ..io import runs
 from ..sensors import sensor_delay, sensor_lowpass
 from ..simulation import batch_status_text, simulate_batch
 from .ga import Evaluator, FitError, FitResult, GASettings, ParamSpec, run_ga
-from .polish import PolishSettings, Records, polish
+from .polish import UNCERTAINTY_ATOL, UNCERTAINTY_RTOL, PolishSettings, Records, polish
 
 SHIM_VALVES = ("piston_rebound", "base_compression")
 
@@ -157,7 +157,12 @@ def _records(design: Design, specs, cases, configuration: str, channel, max_wall
         R[[j for j in range(n) if reasons[j] is not None]] = np.nan
         return R, reasons
 
-    return Records(residuals, np.concatenate([trapezoid_weights(c[0]) for c in cases]), [len(c[0]) for c in cases])
+    def precise(X: np.ndarray):
+        return _records(design, specs, cases, configuration, channel, max_wall_s,
+                        **{**sim_kw, "rtol": UNCERTAINTY_RTOL, "atol": UNCERTAINTY_ATOL}).residuals(X)
+
+    return Records(residuals, np.concatenate([trapezoid_weights(c[0]) for c in cases]), [len(c[0]) for c in cases],
+                   precise=None if sim_kw.get("rtol") == UNCERTAINTY_RTOL else precise)
 
 
 def _batch_objective(design: Design, specs, cases, configuration: str, channel, max_wall_s: float | None = None,

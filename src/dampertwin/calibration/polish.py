@@ -25,9 +25,18 @@ from typing import Callable
 import numpy as np
 
 from .ga import FitResult, ParamSpec
-from .uncertainty import analyse, fd_jacobian, other_optima
+from .uncertainty import analyse, central_jacobian, fd_jacobian, other_optima
 
 F_SCALE_FRACTION = 0.1  # soft_l1 f_scale as a fraction of the median |weighted residual| at the start
+# The uncertainty's Jacobian is taken from simulations at a tight tolerance (Records.precise):
+# at the fits' rtol 1e-4 the forward and backward quotients of the top-mount fit differ by
+# 0.53 of the largest singular value (lab 2 sample 1, gene step 1e-3), so every weak
+# direction was solver noise and the intervals came out 10-100x too narrow. At rtol 1e-7
+# the solver part of the error is still ~0.004 of it at step 3e-3, at 1e-8 below the
+# curvature part (README "What the intervals do not cover").
+UNCERTAINTY_RTOL = 1e-8
+UNCERTAINTY_ATOL = 1e-6
+UNCERTAINTY_STEP = 3e-3  # gene-space step of the uncertainty's central differences
 
 
 @dataclass(frozen=True)
@@ -53,11 +62,15 @@ class Records:
     e = measured - simulated, concatenated over records, and the eq. 6.x
     objective sum_i w_i |e_i| (trapezoid weights w_i [s])."""
 
-    def __init__(self, residuals: Callable, weights: np.ndarray, blocks: list[int] | None = None):
+    def __init__(self, residuals: Callable, weights: np.ndarray, blocks: list[int] | None = None,
+                 precise: Callable | None = None):
         # (m, k) parameter values -> (m, n) residuals with NaN rows for failures,
         # or (residuals, reason per row) to say why a row failed; ``blocks``: the
-        # records' lengths in that order (the uncertainty's batches do not span two)
+        # records' lengths in that order (the uncertainty's batches do not span two);
+        # ``precise``: the same residuals from simulations at UNCERTAINTY_RTOL (for
+        # the uncertainty's Jacobian; None: ``residuals`` are exact, e.g. analytic)
         self._residuals = residuals
+        self._precise = precise
         self.weights = np.asarray(weights, float)
         self.blocks = None if blocks is None else [int(b) for b in blocks]
 
@@ -68,6 +81,13 @@ class Records:
 
     def residuals(self, X: np.ndarray) -> np.ndarray:
         return self.evaluate(X)[0]
+
+    def precise_residuals(self, X: np.ndarray) -> np.ndarray:
+        """Residuals from simulations at the uncertainty's tight tolerance."""
+        if self._precise is None:
+            return self.residuals(X)
+        out = self._precise(np.atleast_2d(X))
+        return np.asarray(out[0] if isinstance(out, tuple) else out, float)
 
     def scores(self, X: np.ndarray) -> tuple[np.ndarray, list]:
         """(objective per row, reason per failed row): the GA's batch objective."""
@@ -158,22 +178,24 @@ def polish(records: Records, specs: list[ParamSpec], res: FitResult, settings: P
     res.polish = report
     res.best = {s.key: float(v) for s, v in zip(specs, values(specs, best_g[None, :])[0])}
     res.best_objective = best_j
-    res.uncertainty = uncertainty_at(records, specs, best_g, settings.step)
+    res.uncertainty = uncertainty_at(records, specs, best_g)
     if "error" not in res.uncertainty and ends:
         G = np.array([g for g, _ in ends])
-        R = np.asarray(records.residuals(values(specs, G)), float)
+        R = np.asarray(records.precise_residuals(values(specs, G)), float)
         alt = [(dict(zip([s.key for s in specs], v)), float(r @ r), j)
                for v, r, (_, j) in zip(values(specs, G), R, ends) if np.all(np.isfinite(r))]
         res.uncertainty = other_optima(res.uncertainty, alt)
     return res
 
 
-def uncertainty_at(records: Records, specs: list[ParamSpec], g: np.ndarray, step: float = 1e-3) -> dict:
+def uncertainty_at(records: Records, specs: list[ParamSpec], g: np.ndarray, step: float = UNCERTAINTY_STEP) -> dict:
     """calibration.uncertainty of the fit at gene point ``g``: residual
-    Jacobian by forward differences (one batch), intervals mapped to values."""
-    e0, J = fd_jacobian(lambda G: records.residuals(values(specs, G)), g, step, np.zeros_like(g), np.ones_like(g))
+    Jacobian by central differences from the precise simulations (one
+    batch of 4p + 1), with its error estimate; intervals mapped to values."""
+    e0, J, E = central_jacobian(lambda G: records.precise_residuals(values(specs, G)), g, step,
+                                np.zeros_like(g), np.ones_like(g))
     if not (np.all(np.isfinite(J)) and np.all(np.isfinite(e0))):
         return {"error": "a simulation failed at or next to the optimum: no Jacobian"}
     u = analyse(J, e0, [s.key for s in specs], g, to_value=lambda j, x: values([specs[j]], np.atleast_1d(x)[:, None])[0, 0],
-                blocks=getattr(records, "blocks", None))
+                blocks=getattr(records, "blocks", None), jac_error=E)
     return {**u.to_dict(), "markdown": u.to_markdown("Identifiability and uncertainty")}

@@ -31,6 +31,15 @@ very different inputs, e.g. smooth regressors). Neither covers a bias: a model e
 the truth moves the optimum itself (README, "What the intervals do not
 cover").
 
+The Jacobian is by central differences with an estimate of its own error
+(:func:`central_jacobian`): a residual from an adaptive ODE solver is not
+a smooth function of the parameters (the step sequence changes with them),
+and a singular value of J is known only to within the norm of J's error
+(Weyl's inequality; Golub & Van Loan, "Matrix Computations", 4th ed.,
+cor. 8.6.2). A direction whose singular value is below that error is not
+resolved: the intervals of the parameters that load it are unbounded,
+however small the pseudo-inverse would make them.
+
 A parameter the data cannot determine is flagged when its interval
 half-width exceeds ``rel_ci_max`` of its value, when it correlates with
 another beyond ``corr_max``, or when it loads a near-singular direction of
@@ -50,6 +59,8 @@ REL_CI_MAX = 1.0   # CI half-width / |value| above which a parameter is undeterm
 CORR_MAX = 0.95    # |correlation| above which a pair is not separately identifiable
 SV_MIN = 1e-6      # singular value / largest singular value of the scaled Jacobian: a singular direction
 NULL_LOADING = 0.3  # |component| of a parameter in a singular direction that flags it
+JAC_NOISE_FACTOR = 1.5  # floor = this x ||E||_2: the extrapolated quotient's noise is 1.2x that of
+                        # E = J_h - J_2h (weights 4/3 and -1/3), with a margin for its own scatter
 BATCHES = 10       # contiguous batches of the score series for the sandwich covariance (min 2 samples each)
 
 
@@ -82,6 +93,48 @@ def fd_jacobian(residuals_batch: Callable[[np.ndarray], np.ndarray], x: np.ndarr
     return R[0], ((R[1:] - R[0]) / h[:, None]).T
 
 
+def central_jacobian(residuals_batch: Callable[[np.ndarray], np.ndarray], x: np.ndarray,
+                     step: float | np.ndarray = 1e-3, lo: np.ndarray | None = None,
+                     hi: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Jacobian of a vector residual at ``x`` from central quotients at steps
+    h and 2h, Richardson-extrapolated (4 J_h - J_2h) / 3, all 4p + 1 points in
+    one batch call, with an estimate of its error. Returns (r(x), J (n, p),
+    E (n, p)), E = J_h - J_2h: for a smooth residual -h^2 r'''/2, several
+    times the error of J (a curvature r'' does not enter it), plus the
+    residual's own noise (an ODE solver's step sequence changes with the
+    parameters) over h. Where x - 2h or x + 2h would leave [lo, hi] the
+    column is one-sided of second order from x, x + s h, x + 2 s h (s
+    pointing inside), compared with the same from x, x + 2 s h, x + 4 s h."""
+    x = np.asarray(x, float)
+    p = len(x)
+    h = np.broadcast_to(np.asarray(step, float), (p,)).copy()
+    lo_ = np.full(p, -np.inf) if lo is None else np.asarray(lo, float)
+    hi_ = np.full(p, np.inf) if hi is None else np.asarray(hi, float)
+    central = (x + 2 * h <= hi_) & (x - 2 * h >= lo_)
+    s = np.where(central | (x + 4 * h <= hi_), 1.0, -1.0)
+    offsets = np.where(central[:, None], np.array([1.0, -1.0, 2.0, -2.0])[None, :] * h[:, None],
+                       np.array([1.0, 2.0, 3.0, 4.0])[None, :] * (s * h)[:, None])  # (p, 4)
+    X = np.vstack([x] + [x + np.diag(offsets[:, k]) for k in range(4)])
+    R = np.asarray(residuals_batch(X), float)
+    r0 = R[0]
+    P = [R[1 + k * p: 1 + (k + 1) * p] for k in range(4)]  # P[k][j]: column j at its k-th offset
+    J = np.empty((len(r0), p))
+    E = np.empty((len(r0), p))
+    for j in range(p):
+        a, b, c, d = (P[k][j] for k in range(4))
+        if central[j]:
+            j1 = (a - b) / (2 * h[j])          # offsets +h, -h
+            j2 = (c - d) / (4 * h[j])          # offsets +2h, -2h
+            J[:, j] = (4 * j1 - j2) / 3
+        else:
+            sh = s[j] * h[j]                   # offsets sh, 2sh, 3sh, 4sh
+            j1 = (-3 * r0 + 4 * a - b) / (2 * sh)
+            j2 = (-3 * r0 + 4 * b - d) / (4 * sh)
+            J[:, j] = j1
+        E[:, j] = j1 - j2
+    return r0, J, E
+
+
 @dataclass
 class Uncertainty:
     """Result of :func:`analyse`: per-parameter table, correlation matrix,
@@ -94,10 +147,12 @@ class Uncertainty:
     n_eff: float
     s2: float
     singular_values: np.ndarray
+    jacobian_error: float = 0.0  # ||E||_2 / largest singular value (scaled), 0 if not estimated
 
     def to_dict(self) -> dict:
         return {"n_samples": self.n, "n_eff": self.n_eff, "residual_variance": self.s2,
                 "singular_values_scaled": self.singular_values.tolist(),
+                "jacobian_error_scaled": self.jacobian_error,
                 "parameters": self.table.to_dict(orient="records"),
                 "correlation": {k: {kk: float(vv) for kk, vv in row.items()}
                                 for k, row in self.correlation.to_dict(orient="index").items()},
@@ -119,7 +174,10 @@ class Uncertainty:
                f"parameter. Intervals are statistical: a bias from a model or bench error that the data prefer "
                f"to the truth is not in them. Undetermined: half-width > "
                f"{REL_CI_MAX:.0%} of the value, |corr| > {CORR_MAX}, or a singular direction "
-               f"(singular value ratio < {SV_MIN:g}).\n\nCorrelations:\n\n"
+               f"(singular value ratio < {SV_MIN:g}) or one below the Jacobian's estimated error "
+               f"({self.jacobian_error:.2g} of the largest singular value; central differences).\n\n"
+               f"Scaled singular values: {', '.join(f'{v:.2g}' for v in self.singular_values)}."
+               f"\n\nCorrelations:\n\n"
                + to_markdown(self.correlation.reset_index(names="parameter"), digits=2))
         return md
 
@@ -153,14 +211,17 @@ def sandwich_covariance(Js: np.ndarray, r: np.ndarray, inv: np.ndarray, groups: 
 def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
             to_value: Callable[[int, np.ndarray], np.ndarray] | None = None, n_eff: float | None = None,
             rel_ci_max: float = REL_CI_MAX, corr_max: float = CORR_MAX, sv_min: float = SV_MIN,
-            blocks: Sequence[int] | None = None, robust: bool = True) -> Uncertainty:
+            blocks: Sequence[int] | None = None, robust: bool = True,
+            jac_error: np.ndarray | None = None) -> Uncertainty:
     """Covariance, 95 % intervals, correlations and identifiability flags of
     parameters ``x`` (fitted coordinates, e.g. genes) with residuals ``r``
     (n,) and Jacobian ``J`` (n, p). ``to_value(j, u)`` maps coordinate j to
     the physical value (intervals are mapped end point by end point, so a
     log-scaled parameter gets an asymmetric interval); identity if None.
     ``blocks``: lengths of the records concatenated in ``r`` (batches do not
-    span two); ``robust=False`` reports the AR(1) intervals alone."""
+    span two); ``robust=False`` reports the AR(1) intervals alone.
+    ``jac_error`` (n, p): an estimate of J's error (:func:`central_jacobian`);
+    directions with a singular value below its norm are not resolved."""
     J, r, x = np.asarray(J, float), np.asarray(r, float), np.asarray(x, float)
     n, p = J.shape
     to_value = to_value or (lambda j, u: u)
@@ -173,7 +234,10 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
     Js = J / scale
     U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
     rel_sv = sv / sv[0] if sv[0] > 0 else np.zeros_like(sv)
-    keep = rel_sv > sv_min
+    floor = 0.0
+    if jac_error is not None and sv[0] > 0:  # Weyl: each singular value is known to within ||E||_2
+        floor = JAC_NOISE_FACTOR * float(np.linalg.norm(np.asarray(jac_error, float) / scale, 2)) / sv[0]
+    keep = rel_sv > max(sv_min, floor)
     inv = (Vt[keep].T / sv[keep] ** 2) @ Vt[keep]          # (Js^T Js)^+
     cov = s2 * n / n_eff * inv / np.outer(scale, scale)
     null_dirs = Vt[~keep]
@@ -208,7 +272,8 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
         k = int(np.argmax(oc)) if p > 1 else j
         why = []
         if not np.isfinite(sd[j]):
-            why.append("singular direction")
+            why.append("singular direction" if floor <= sv_min else
+                       f"direction not resolved (singular value below the Jacobian's error, {floor:.1e} of the largest)")
         elif rel > rel_ci_max:
             why.append(f"CI half-width {rel:.0%} of value")
         if p > 1 and oc[k] > corr_max:
@@ -219,7 +284,7 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
                      "max |corr|": float(oc[k]) if p > 1 else 0.0, "with": names[k] if p > 1 else "",
                      "determined": not why, "why": "; ".join(why)})
     return Uncertainty(pd.DataFrame(rows), pd.DataFrame(corr, index=list(names), columns=list(names)), cov, n,
-                       n_eff, s2, rel_sv)
+                       n_eff, s2, rel_sv, floor)
 
 
 def other_optima(u: dict, ends: list[tuple[dict, float, float]], level: float = 0.95) -> dict:
@@ -269,7 +334,8 @@ def other_optima(u: dict, ends: list[tuple[dict, float, float]], level: float = 
 METHOD = ("linearised least squares at the optimum: covariance s^2 (J^T J)^+ n / n_eff from the residual Jacobian, "
           "n_eff the AR(1) effective sample size of the residuals, or the batch-means sandwich covariance "
           f"({BATCHES} batches), whichever is wider; 95 % Student-t intervals (statistical only: a bias from a model "
-          "or bench error is not in them), widened to cover "
+          "or bench error is not in them); Jacobian by central differences, a direction whose singular value is "
+          "below the Jacobian's estimated error is not resolved (unbounded intervals); widened to cover "
           "other optima of the multi-start polish inside the joint 95 % region (calibration.uncertainty)")
 
 
