@@ -154,17 +154,19 @@ def nrmse(measured: np.ndarray, simulated: np.ndarray) -> float:
     return float(np.sqrt(np.mean((s - m) ** 2)) / rng)
 
 
-def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], values: np.ndarray) -> dict:
+def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], values: np.ndarray,
+                    jac_error: np.ndarray | None = None) -> dict:
     """Intervals of a fit from its residual Jacobian ``J`` (d residual / d
     parameter, physical units) at the optimum ``values``: the project's one
     uncertainty analysis (:func:`dampertwin.calibration.uncertainty.analyse`:
     Gauss-Newton covariance, AR(1) effective sample size, Student-t 95 %
     intervals, undetermined parameters) in the report form of
     :func:`~dampertwin.calibration.uncertainty.summary`, plus each
-    parameter's standard deviation [its unit]."""
+    parameter's standard deviation [its unit]. ``jac_error``: an estimate of
+    J's error (directions below it are not resolved)."""
     from .calibration.uncertainty import analyse, summary
 
-    u = analyse(J, residual, list(names), np.asarray(values, float))
+    u = analyse(J, residual, list(names), np.asarray(values, float), jac_error=jac_error)
     out = summary(u.to_dict())
     for row in u.table.to_dict(orient="records"):
         out["parameters"][row["parameter"]]["std"] = row["std (fitted coord.)"]  # coordinates = physical here
@@ -402,26 +404,35 @@ def _residual_stack(problem: _Problem, sims, fi: int, row: int) -> np.ndarray:
 
 
 def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> tuple[dict, dict]:
-    """Gauss-Newton intervals of ``best`` from the fitted file's residual:
-    one batch of simulations (the optimum + one forward step per parameter,
-    1e-3 relative, stepping inward at a search bound). Returns (ci, sims)."""
+    """Intervals of ``best`` from the fitted file's residual: Richardson
+    central differences (:func:`~dampertwin.calibration.uncertainty.central_jacobian`,
+    steps 1e-3 relative, one-sided at a search bound; one batch of 4p + 1
+    simulations at the uncertainty's tight tolerance, whose error estimate
+    marks directions the Jacobian cannot resolve), and the simulations of
+    ``best`` at the fit's tolerance (nrmse, plots). Returns (ci, sims)."""
+    from .calibration.polish import UNCERTAINTY_ATOL, UNCERTAINTY_RTOL
+    from .calibration.uncertainty import central_jacobian
+
     keys = list(best)
+    x = np.array([best[k] for k in keys], float)
     bounds = {s.key: (s.lo, s.hi) for s in (specs or [])}
-    rows, steps = [dict(best)], []
-    for k in keys:
-        r = dict(best)
-        lo, hi = bounds.get(k, (-np.inf, np.inf))
-        h = 1e-3 * abs(r[k]) if r[k] != 0 else 1e-3 * (hi - lo if np.isfinite(hi - lo) else 1.0)
-        if r[k] + h > hi:
-            h = -h
-        r[k] += h
-        rows.append(r)
-        steps.append(h)
-    sims = problem.simulate(rows)
-    r0 = _residual_stack(problem, sims, 0, 0)
-    J = np.column_stack([(_residual_stack(problem, sims, 0, j + 1) - r0) / h for j, h in enumerate(steps)])
-    ok = np.all(np.isfinite(J), axis=1) & np.isfinite(r0)
-    return gauss_newton_ci(J[ok], r0[ok], keys, np.array([best[k] for k in keys])), sims
+    lo = np.array([bounds.get(k, (-np.inf, np.inf))[0] for k in keys], float)
+    hi = np.array([bounds.get(k, (-np.inf, np.inf))[1] for k in keys], float)
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    scale = np.where(x != 0, np.abs(x), span)  # coordinates u = value / scale: steps of 1e-3 relative
+    precise = _Problem(problem.design, problem.configuration, problem.channel, problem.files,
+                       {**problem.sim_kw, "rtol": UNCERTAINTY_RTOL, "atol": UNCERTAINTY_ATOL}, problem.nuisance)
+
+    def batch(U):
+        rows = [dict(zip(keys, u * scale)) for u in np.atleast_2d(U)]
+        sims = precise.simulate(rows, which={0})
+        return np.array([_residual_stack(precise, sims, 0, i) for i in range(len(rows))])
+
+    r0, Ju, E = central_jacobian(batch, x / scale, 1e-3, lo / scale, hi / scale)
+    J, E = Ju / scale, E / scale
+    ok = np.all(np.isfinite(J), axis=1) & np.all(np.isfinite(E), axis=1) & np.isfinite(r0)
+    ci = gauss_newton_ci(J[ok], r0[ok], keys, x, jac_error=E[ok])
+    return ci, problem.simulate([dict(best)])
 
 
 def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, settings, seed, extra_meta: dict,
