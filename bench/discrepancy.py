@@ -116,6 +116,13 @@ def one_case(it: dict) -> dict:
             "truth_unresolvable": [n for n in it["truth"] if rs.get(n, {}).get("resolvable") is False]}
 
 
+def _one_thread() -> None:
+    """Case processes of --jobs: one numba thread each (the cases are the parallelism)."""
+    import numba
+
+    numba.set_num_threads(1)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--controls", type=int, default=10)
@@ -133,6 +140,8 @@ def main(argv=None) -> int:
                     help="processes generating one case's lab records and simulating its records in the workflow "
                          "(default: all cores locally, 1 per case on a cluster)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="cases run at once on this machine, one process each (then 1 lab / record worker per case)")
     ap.add_argument("--scheduler", default=None,
                     help="Dask scheduler address: cases run as tasks on the cluster (work folder shared)")
     args = ap.parse_args(argv)
@@ -150,7 +159,7 @@ def main(argv=None) -> int:
     plan, names = cases(args, design, cfg, rng)
     items = [{"k": k, "cell": cell, "truth": truth, "spec": spec, "art": art, "seed": int(rng.integers(0, 2**31)),
               "base": base, "conf": str(conf), "work": str(work), "only": only, "tests": tests,
-              "lab_workers": args.lab_workers or (1 if args.scheduler else os.cpu_count() or 1)}
+              "lab_workers": args.lab_workers or (1 if args.scheduler or args.jobs > 1 else os.cpu_count() or 1)}
              for k, (cell, truth, spec, art) in enumerate(plan)]
     t0 = time.time()
     if args.scheduler:  # one case per task on the Dask cluster (same function as locally)
@@ -159,6 +168,18 @@ def main(argv=None) -> int:
         rows = [r for r, _ in DaskMap(args.scheduler)(one_case, items)]
         for r in rows:
             print(json.dumps(r), file=sys.stderr)
+    elif args.jobs > 1:  # cases side by side on this machine, one single-threaded process each
+        from concurrent.futures import ProcessPoolExecutor
+        from multiprocessing import get_context
+
+        from tqdm import tqdm
+
+        with ProcessPoolExecutor(args.jobs, mp_context=get_context("spawn"), initializer=_one_thread) as ex:
+            rows = []
+            for r in tqdm(ex.map(one_case, items), total=len(items), desc="hidden-effect matrix (cases)",
+                          file=sys.stderr):
+                rows.append(r)
+                tqdm.write(json.dumps(r), file=sys.stderr)
     else:
         from tqdm import tqdm
 

@@ -320,3 +320,50 @@ def test_record_gate_is_a_bonferroni_chi_square_test():
     m2 = mask.copy()
     m2[:8] = False
     assert worst_record(pr, z, m2, 0.01)[1] != "r0"
+
+
+def test_shared_transducer_gain_couples_the_records_of_one_chain(monkeypatch):
+    """features.shared_covariance / Problem.set_noise: one load cell records
+    every damper-level test, so a gain error common to the records is noise
+    (chi^2 ~ features) while records disagreeing in gain by +-3 % are not
+    (the run-to-run allowance is 1 %); with per-record full gains (the old
+    model) both would pass. Flow-bench records share their own dp chain,
+    not the load cell's, and the two folds are whitened apart (no held-out
+    feature enters a training chi^2)."""
+    from types import SimpleNamespace
+
+    from dampertwin.discrepancy import features as F
+    from dampertwin.discrepancy.workflow import Problem, chi
+
+    rng = np.random.default_rng(3)
+    sd = 1.0
+    means = [rng.uniform(200, 400, 6) * rng.choice([-1, 1], 6) for _ in range(4)]
+
+    def unit(m, config, fold, key):
+        C = np.diag(np.full(len(m), sd ** 2)) + np.outer(0.01 * m, 0.01 * m)   # noise + record_gain
+        return SimpleNamespace(labels=[("force", str(i)) for i in range(len(m))], _C=C, configuration=config,
+                               fold=fold, _shared={key: 0.03 * m}, mean=m)
+
+    units = [unit(means[0], "damper", "train", "force"), unit(means[1], "damper", "train", "force"),
+             unit(means[2], "valve", "train", "dp"), unit(means[3], "damper", "heldout", "force")]
+    C = F.shared_covariance(units[:3])
+    assert np.allclose(C[:6, 6:12], np.outer(0.03 * means[0], 0.03 * means[1]))   # load cell shared
+    assert np.all(C[:12, 12:] == 0.0)                                            # flow bench's own chain
+    monkeypatch.setattr(F, "noise", lambda u, cfg, pc=None: (np.full(len(u.labels), sd), None))
+    pr = Problem(units=units, fcfg={})
+    pr.set_noise(SimpleNamespace(pcs=[None] * 4))
+    nf = 24
+    train = np.array([u.fold == "train" for u in units for _ in u.labels])
+    assert np.all(pr.W[np.ix_(train, ~train)] == 0.0) and np.all(pr.W[np.ix_(~train, train)] == 0.0)
+    common = np.concatenate([0.03 * m for m in means[:2]] + [np.zeros(6), 0.03 * means[3]])
+    split = np.concatenate([0.05 * means[0], -0.05 * means[1], np.zeros(12)])
+    noise = rng.standard_normal(nf) * sd
+    assert chi(pr.W @ (common + noise), np.ones(nf, bool)) < 1.5 * nf
+    # expected: 12 noise features + (5 % / 1 %)^2 per record of the split gain (its mean 0 is what the
+    # shared gain may take) ~ 62; the old model (a full 3 % gain per record) ~ 12 + 2 x (5/3.2)^2 ~ 17
+    new = chi(pr.W @ (split + noise), train)
+    old_W = np.linalg.inv(np.linalg.cholesky(np.block(
+        [[units[0]._C + np.outer(0.03 * means[0], 0.03 * means[0]), np.zeros((6, 6))],
+         [np.zeros((6, 6)), units[1]._C + np.outer(0.03 * means[1], 0.03 * means[1])]])))
+    old = chi(old_W @ (split + noise)[:12], np.ones(12, bool))
+    assert old < 30.0 < 40.0 < new, (old, new)

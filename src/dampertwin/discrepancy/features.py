@@ -319,7 +319,17 @@ def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
     the same channel (few cycles), plus a small floor; and the bench
     nuisances as covariance: a transducer gain error (proportional to the
     feature) and an offset per channel. Returns (sigma diagonal, whitening
-    matrix of the unit's block)."""
+    matrix of the unit's block).
+
+    A channel whose ``bench_floor`` entry sets ``shared_gain: true`` is
+    recorded by ONE transducer chain on every damper-level test (one load
+    cell, one accelerometer, one dp transducer on the flow bench): its gain
+    error is common to all records. The unit's own covariance then carries
+    only the run-to-run part (``record_gain``) and the common part is left
+    in ``u._shared`` (channel -> gain x feature vector) for
+    ``shared_covariance``, which couples the records (the whitening returned
+    here is the unit's block alone, for the first look before the records
+    are coupled)."""
     pc = u.per_cycle
     n = pc.shape[0]
     r = pc - sim_pc if sim_pc is not None and np.all(np.isfinite(sim_pc)) else pc
@@ -331,6 +341,7 @@ def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
     names = [lab[0] for lab in u.labels]
     nf = len(names)
     C = np.zeros((nf, nf))
+    u._shared = {}
     for name in dict.fromkeys(names):
         m = np.array([x == name for x in names])
         pooled = np.sqrt(0.5 * sd[m] ** 2 + 0.5 * np.median(sd[m] ** 2))
@@ -346,6 +357,12 @@ def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
             b = fl[{FORCE: "force", DP: "dp", ACC: "rod acceleration"}[ch]]
             sig[m] = np.sqrt(scatter ** 2 + (float(b["floor"]) * rms) ** 2)
             gain = float(b["gain"]) * mean[m]
+            if b.get("shared_gain", False):
+                # common chain gain (set aside for shared_covariance) + run-to-run part of this record
+                key = {FORCE: "force", DP: "dp", ACC: "rod acceleration"}[ch]
+                shared = u._shared.setdefault(key, np.zeros(nf))
+                shared[idx] = gain
+                gain = float(b.get("record_gain", 0.0)) * mean[m]
             off = np.full(len(idx), float(b["offset"]) * rms if name != "acceleration rms" else 0.0)
             # transducer delay other than documented (filter kind / order / corner): bin means shift
             # along the signal's slope
@@ -354,8 +371,31 @@ def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
         C[np.ix_(idx, idx)] += np.outer(gain, gain) + np.outer(off, off)
     sig = np.maximum(sig, 1e-12)
     C += np.diag(sig ** 2)
+    u._C = C
     L = np.linalg.cholesky(C)
     return sig, np.linalg.inv(L)
+
+
+def shared_covariance(units: list) -> np.ndarray:
+    """Covariance of the concatenated features of ``units`` (after ``noise``):
+    each unit's own block plus, per transducer chain with a shared gain, the
+    outer product of its gain vectors over every unit that records it (one
+    gain error, common to the records). The records' chains: flow-bench
+    records share the flow bench's dp chain, damper / module records the
+    load cell and the accelerometer."""
+    sizes = [len(u.labels) for u in units]
+    C = np.zeros((sum(sizes), sum(sizes)))
+    vecs: dict = {}
+    o = 0
+    for u, n in zip(units, sizes):
+        C[o:o + n, o:o + n] = u._C
+        for key, g in getattr(u, "_shared", {}).items():
+            v = vecs.setdefault(("valve" if u.configuration == "valve" else "damper", key), np.zeros(len(C)))
+            v[o:o + n] = g
+        o += n
+    for v in vecs.values():
+        C += np.outer(v, v)
+    return C
 
 
 def sim_signals(u: Unit, channels: dict, row: int) -> dict:

@@ -153,12 +153,22 @@ class Problem:
         return np.concatenate([u.sigma for u in self.units])
 
     def set_noise(self, base: Row) -> None:
-        """Noise model from the residual scatter of the design under test (features.noise)."""
-        from scipy.linalg import block_diag
-
+        """Noise model from the residual scatter of the design under test
+        (features.noise), the records of one fold coupled by the transducer
+        chains' shared gain errors (features.shared_covariance). Whitened per
+        fold: a training chi^2 never sees held-out data and vice versa (the
+        two folds' gain nuisances are treated as independent)."""
         for u, pc in zip(self.units, base.pcs):
             u.sigma, u.white = F.noise(u, self.fcfg, pc)
-        self.W = block_diag(*[u.white for u in self.units])
+        sizes = [len(u.labels) for u in self.units]
+        starts = np.concatenate([[0], np.cumsum(sizes)])
+        W = np.zeros((starts[-1], starts[-1]))
+        for fold in dict.fromkeys(getattr(u, "fold", "train") for u in self.units):
+            members = [i for i, u in enumerate(self.units) if getattr(u, "fold", "train") == fold]
+            idx = np.concatenate([np.arange(starts[i], starts[i + 1]) for i in members])
+            C = F.shared_covariance([self.units[i] for i in members])
+            W[np.ix_(idx, idx)] = np.linalg.inv(np.linalg.cholesky(C))
+        self.W = W
 
     def measured(self, boot: list | None = None) -> np.ndarray:
         return np.concatenate([u.measured_features(None if boot is None else boot[i]) for i, u in enumerate(self.units)])
