@@ -367,3 +367,51 @@ def test_shared_transducer_gain_couples_the_records_of_one_chain(monkeypatch):
          [np.zeros((6, 6)), units[1]._C + np.outer(0.03 * means[1], 0.03 * means[1])]])))
     old = chi(old_W @ (split + noise)[:12], np.ones(12, bool))
     assert old < 30.0 < 40.0 < new, (old, new)
+
+
+def test_calibration_parameters_are_chosen_by_orthogonal_matching_pursuit():
+    """select_params: a residual made of two independent parameter directions
+    is explained by those two, even when three near-copies of the first
+    column (one valve's a, c and preload moving the same features) each
+    align with it better than the second column does. Ranking the columns
+    one by one (the old rule) takes the copies first."""
+    from dampertwin.discrepancy.workflow import select_params
+
+    rng = np.random.default_rng(5)
+    n = 60
+    a, b = rng.standard_normal(n), rng.standard_normal(n)
+    b -= a * (a @ b) / (a @ a)
+    J = np.column_stack([a + 0.01 * rng.standard_normal(n) for _ in range(3)] + [b, rng.standard_normal(n)])
+    r = 3.0 * a + 1.0 * b
+    sel = select_params(J, r, 2)
+    assert sorted(sel) in ([0, 3], [1, 3], [2, 3]), sel
+    one_by_one = list(np.argsort(-np.array([(J[:, i] @ r) ** 2 / (J[:, i] @ J[:, i]) for i in range(5)]))[:2])
+    assert 3 not in one_by_one      # the old rule picks two copies of a
+    # the chosen columns explain r (up to the copies' 1 % scatter); nothing is taken without a gain
+    x = np.linalg.lstsq(J[:, sel], r, rcond=None)[0]
+    assert np.linalg.norm(J[:, sel] @ x - r) < 0.05 * np.linalg.norm(r)
+    assert select_params(np.zeros((n, 3)), r, 2) == []
+
+
+def test_a_step_outside_the_valid_design_is_taken_the_other_way():
+    """sensitivity(): rod friction F_c = 60 N with F_s = 80 N; a +5 % step of
+    its 0-500 N range (85 N) breaks F_c <= F_s (eq. 4.41) and the design is
+    refused. The sensitivity must then step down, not come back empty: an
+    empty column meant the calibration refit could never pick the rod
+    friction level (a control with F_c +20 % was then named
+    valve_friction_current)."""
+    from types import SimpleNamespace
+
+    from dampertwin.discrepancy.workflow import FitParam, Row, sensitivity
+    from dampertwin.design.description import DesignError
+
+    d = load(DESIGN)
+    assert d["rod_friction.F_c"] == 60.0 and d["rod_friction.F_s"] == 80.0
+    with pytest.raises(DesignError):
+        d.with_overrides({"rod_friction.F_c": 85.0})
+    pr = SimpleNamespace(simulate=lambda designs, label: [Row([np.array([[x["rod_friction.F_c"], x["oil.T"]]])])
+                                                          for x in designs])
+    params = [FitParam("rod_friction.F_c", 0.0, 500.0, 60.0), FitParam("oil.T", 278.15, 323.15, d["oil.T"])]
+    S, hs = sensitivity(pr, d, params, 0.05, "test")
+    assert hs[0] == -0.05 and hs[1] == 0.05
+    assert np.allclose(S[1].S, [35.0, d["oil.T"]]) and np.all(np.isfinite(S[2].S))

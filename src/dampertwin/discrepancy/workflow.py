@@ -290,6 +290,34 @@ def record_pool(workers: int | None):
     return ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_worker_init)
 
 
+def select_params(J: np.ndarray, r: np.ndarray, k: int) -> list:
+    """Up to ``k`` columns of ``J`` (whitened sensitivities [features, params])
+    that explain the residual ``r`` best, chosen by orthogonal matching
+    pursuit (Pati et al., Asilomar 1993): each step takes the column whose
+    part orthogonal to the columns already taken removes the most of what
+    is left of ``r``. Unlike ranking the columns one by one, three
+    parameters of one valve that move the same features count once, so the
+    refit reaches the other disagreeing records' parameters. Columns with
+    no independent part (< 1e-6 of their norm) or no gain are never taken."""
+    Q = np.asarray(J, float).copy()
+    res = np.asarray(r, float).copy()
+    norms = np.sqrt(np.sum(Q * Q, axis=0))
+    out: list = []
+    for _ in range(min(k, Q.shape[1])):
+        nq = np.sqrt(np.sum(Q * Q, axis=0))
+        ok = nq > 1e-6 * np.maximum(norms, 1e-300)
+        gain = np.where(ok, (Q.T @ res) ** 2 / np.where(ok, nq * nq, 1.0), 0.0)
+        gain[out] = 0.0
+        j = int(np.argmax(gain))
+        if gain[j] <= 0.0:
+            break
+        out.append(j)
+        q = Q[:, j] / nq[j]
+        res = res - q * (q @ res)
+        Q = Q - np.outer(q, q @ Q)
+    return out
+
+
 def chi(z: np.ndarray, mask: np.ndarray) -> float:
     """Sum of squared noise-scaled residuals (inf when a member failed)."""
     v = z[..., mask]
@@ -366,8 +394,14 @@ def gauss_newton(problem: Problem, base: Design, fixed: dict, params: list, mask
     pts, hs = ([u] if S0 is None else []), []
     for i in fd:
         v = u.copy()
-        hs.append(step if u[i] + step <= 1.0 else -step)
-        v[i] = u[i] + hs[-1]
+        h = step if u[i] + step <= 1.0 else -step
+        v[i] = u[i] + h
+        try:
+            design_at(v)
+        except DesignError:  # outside the valid set (F_c > F_s, say): step the other way (sensitivity)
+            h = -h
+            v[i] = u[i] + h
+        hs.append(h)
         pts.append(v)
     rows = _rows(problem, design_at, d0, pts, f"{label} start")
     S_cur = S0 if S0 is not None else rows.pop(0)
@@ -439,13 +473,20 @@ def sensitivity(problem: Problem, base: Design, params: list, step: float, label
     for p in params:
         u = p.to_u(p.start)
         h = step if u + step <= 1.0 else -step
-        hs.append(h)
         try:
             designs.append(base.with_overrides({p.key: p.to_v(u + h)}))
             ok.append(True)
         except DesignError:
-            designs.append(base)
-            ok.append(False)
+            # the step left the design's valid set (e.g. rod friction F_c above F_s, eq. 4.41 needs
+            # F_c <= F_s): step the other way rather than lose the parameter's sensitivity
+            h = -h
+            try:
+                designs.append(base.with_overrides({p.key: p.to_v(u + h)}))
+                ok.append(True)
+            except DesignError:
+                designs.append(base)
+                ok.append(False)
+        hs.append(h)
     S = problem.simulate(designs, label=label)
     return [r if o else _nan_row(r) for r, o in zip(S, ok)], np.array(hs)
 
@@ -615,13 +656,11 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         return finish("none", [], [], design, S0, {})
 
     # 2. Separate miscalibration ------------------------------------------------
-    r = z0[train]
-    gain = np.array([(Jc[train, i] @ r) ** 2 / max(Jc[train, i] @ Jc[train, i], 1e-300) for i in range(len(pool))])
-    order = [i for i in np.argsort(-gain) if gain[i] > 0][: int(prof["calibration"]["max_params"])]
+    order = select_params(Jc[train], z0[train], int(prof["calibration"]["max_params"]))
     sel = [pool[i] for i in order]
     ps = float(dcfg.get("prior_sigma", 0.1))
     prior = {p.key: (p.start, ps) for p in sel}  # the design's own values
-    log.append("calibration refit of " + ", ".join(p.key for p in sel) + " (largest sensitivity along the residual)")
+    log.append("calibration refit of " + ", ".join(p.key for p in sel) + " (orthogonal matching pursuit on the residual)")
     cal = gauss_newton(problem, design, {}, sel, train, int(prof["calibration"]["iterations"]), step, "calibration refit",
                        S0=S0, J0={pool[i].key: Jc[:, i] for i in order}, prior=prior)
     z_cal = problem.z(cal.S)
@@ -742,10 +781,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     if pairs:
         lf = fits[lead.name]
         z_l = problem.z(lf.S)
-        r_l = z_l[train]
-        g_l = np.array([(Jc[train, i] @ r_l) ** 2 / max(Jc[train, i] @ Jc[train, i], 1e-300)
-                        for i in range(len(pool))])
-        order_l = [i for i in np.argsort(-g_l) if g_l[i] > 0][: int(prof["calibration"]["max_params"])]
+        order_l = select_params(Jc[train], z_l[train], int(prof["calibration"]["max_params"]))
         lead_keys = {p.key for p in lead.params}
         # the lead fit's own calibration parameters (if it had any) and the re-selected ones
         sel_l = list({p.key: p for p in [q for q in pool if q.key in lf.values and q.key not in lead_keys]
