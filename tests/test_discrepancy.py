@@ -415,30 +415,3 @@ def test_a_step_outside_the_valid_design_is_taken_the_other_way():
     S, hs = sensitivity(pr, d, params, 0.05, "test")
     assert hs[0] == -0.05 and hs[1] == 0.05
     assert np.allclose(S[1].S, [35.0, d["oil.T"]]) and np.all(np.isfinite(S[2].S))
-
-
-def test_recorded_oil_temperature_pins_the_refit(tmp_path):
-    """The rig's recorded oil temperature (metadata oil_temperature_K, per
-    run) centres the refit's oil.T prior at the damper-level runs' mean with
-    the thermocouple's width; without a record the design's value with the
-    normalised width; a recorded value that is not a temperature is an error
-    naming the file and the run."""
-    from types import SimpleNamespace
-
-    from dampertwin.discrepancy.entry import DiscrepancyError, _recorded_temperature
-    from dampertwin.discrepancy.workflow import FitParam, calibration_priors
-
-    f = tmp_path / "curving" / "baseline.parquet"
-    assert _recorded_temperature(f, {"oil_temperature_K": {"v0.1_I1.6": 309.1}}, "v0.1_I1.6") == 309.1
-    assert _recorded_temperature(f, {"oil_temperature_K": 305.0}, "x") == 305.0
-    assert _recorded_temperature(f, {}, "x") is None
-    with pytest.raises(DiscrepancyError, match=r"baseline.parquet.*oil_temperature_K.*v0.1_I1.6"):
-        _recorded_temperature(f, {"oil_temperature_K": {"v0.1_I1.6": 36.0}}, "v0.1_I1.6")   # degC, not K
-    params = [FitParam("oil.T", 278.15, 323.15, 303.15), FitParam("oil.chi", 0.0, 0.05, 0.0035)]
-    units = [SimpleNamespace(configuration="damper", oil_temperature=308.0),
-             SimpleNamespace(configuration="damper", oil_temperature=310.0),
-             SimpleNamespace(configuration="valve", oil_temperature=290.0)]   # the flow bench's own oil
-    pr = calibration_priors(params, units, 0.1, 1.5)
-    assert pr["oil.T"] == (309.0, pytest.approx(1.5 / 45.0)) and pr["oil.chi"] == (0.0035, 0.1)
-    free = calibration_priors(params, [SimpleNamespace(configuration="damper", oil_temperature=None)], 0.1, 1.5)
-    assert free["oil.T"] == (303.15, 0.1)

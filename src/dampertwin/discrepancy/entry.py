@@ -5,8 +5,6 @@ that reads the measured folder and the configuration and writes
 
 from __future__ import annotations
 
-import math
-
 import json
 import os
 import shutil
@@ -112,7 +110,6 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
                     continue
                 u = F.make_unit(test, case, str(name), cfg_name, cur, g, proto.get("sensors", {}), maxd.get(test),
                                 bench=bench, flow_cutoff=flow_cut)
-                u.oil_temperature = _recorded_temperature(f, meta, str(name))
                 try:
                     F.prepare(u, fcfg)
                 except ValueError as e:
@@ -122,26 +119,6 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         raise DiscrepancyError(f"{measured}: no record of the tests this profile uses "
                                f"({', '.join(k for k, v in want.items() if v)}); present: {', '.join(present)}")
     return units, variants, notes
-
-
-def _recorded_temperature(path: Path, meta: dict, run: str) -> float | None:
-    """[K] oil temperature the rig recorded with a run (metadata ``oil_temperature_K``: a number
-    for the file or run -> number), None when not recorded; a recorded value that is not a
-    temperature (200-500 K) is an error naming the file and the run."""
-    rec = (meta or {}).get("oil_temperature_K")
-    if rec is None:
-        return None
-    v = rec.get(run) if isinstance(rec, dict) else rec
-    if v is None:
-        return None
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        v = math.nan
-    if not (math.isfinite(v) and 200.0 <= v <= 500.0):
-        raise DiscrepancyError(f"{path}: metadata oil_temperature_K of run {run!r}: {rec.get(run) if isinstance(rec, dict) else rec!r}; "
-                               "expected an oil temperature in K (200-500)")
-    return v
 
 
 def _flow_input_cutoff(conf: Path) -> float:

@@ -60,7 +60,6 @@ class Unit:
     sigma: np.ndarray | None = None                 # noise level per feature (diagonal)
     white: np.ndarray | None = None                 # whitening matrix of the unit's features
     fold: str = "train"
-    oil_temperature: float | None = None   # [K] recorded with the run (metadata ``oil_temperature_K``)
     frequency: float | None = None
     _bins: tuple | None = None                      # (cycle index, bin index, valid mask) for sine units
     _floor: dict | None = None                      # measured PSD floor per channel

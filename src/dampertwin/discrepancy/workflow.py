@@ -318,21 +318,6 @@ def select_params(J: np.ndarray, r: np.ndarray, k: int) -> list:
     return out
 
 
-def calibration_priors(params: list, units: list, sigma_u: float, temperature_sigma: float) -> dict:
-    """Prior of a calibration refit, key -> (centre, sigma in u): the design's
-    own values with ``sigma_u``; the oil temperature, when the rig recorded
-    it with the damper-level runs (``Unit.oil_temperature``), at the recorded
-    mean with the thermocouple's ``temperature_sigma`` [K]: a test condition
-    that was measured is not free to absorb, e.g., a piston leakage by
-    cooling the oil 9 K (what the refit did with a free oil.T)."""
-    rec = [u.oil_temperature for u in units if u.configuration != "valve" and u.oil_temperature is not None]
-    out = {p.key: (p.start, sigma_u) for p in params}
-    for p in params:
-        if p.key == "oil.T" and rec:
-            out[p.key] = (min(max(float(np.mean(rec)), p.lo), p.hi), temperature_sigma / (p.hi - p.lo))
-    return out
-
-
 def chi(z: np.ndarray, mask: np.ndarray) -> float:
     """Sum of squared noise-scaled residuals (inf when a member failed)."""
     v = z[..., mask]
@@ -510,13 +495,13 @@ def _nan_row(r: Row) -> Row:
     return Row([np.full_like(p, np.nan) for p in r.pcs])
 
 
-def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: np.ndarray, prior_sigma,
+def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: np.ndarray, prior_sigma: float,
                   alpha: float, separating: dict) -> list[dict]:
     """What the records present can resolve: each candidate switched on at
     its typical magnitude on ``base``, its whitened signature (bench gain /
     offset allowances already in the whitening) minus what the calibration
     pool absorbs (columns ``J`` = d z / d u, prior width ``prior_sigma`` in
-    u as in the refit: one number or one per column), as chi^2 in its most affected record over that
+    u as in the refit), as chi^2 in its most affected record over that
     record's gate quantile (``worst_record``). ratio >= 1: the typical
     magnitude alone exceeds the gate; otherwise about 1 / sqrt(ratio) x the
     typical magnitude would be needed (signature linear in the magnitude).
@@ -528,7 +513,7 @@ def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: n
     zb = problem.z(S_base)
     allm = problem.mask(None)
     n = J.shape[1]
-    A = np.vstack([J, np.diag(1.0 / np.broadcast_to(np.asarray(prior_sigma, float), (n,)))]) if n else None
+    A = np.vstack([J, np.eye(n) / prior_sigma]) if n else None
     out = []
     for c, row in zip(cands, S):
         zs = problem.z(row)
@@ -615,11 +600,6 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
 
     # 1. Find ----------------------------------------------------------------
     pool = calibration_params(design, cfg)
-    ps = float(dcfg.get("prior_sigma", 0.1))
-
-    def priors(params: list) -> dict:
-        return calibration_priors(params, units, ps, float(dcfg.get("recorded_temperature_sigma", 1.5)))
-
     S_sens, hs = sensitivity(problem, design, pool, step, "find + sensitivities")
     S0 = S_sens[0]
     if not S0.ok:
@@ -647,8 +627,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         """Before a `none`: which candidates these records could have seen (report)."""
         if not dcfg.get("resolvability", True) or alpha <= 0:
             return
-        pw = priors(pool)
-        rs = resolvability(problem, base, S_base, catalogue(design, cfg), Jc, np.array([pw[p.key][1] for p in pool]),
+        rs = resolvability(problem, base, S_base, catalogue(design, cfg), Jc, float(dcfg.get("prior_sigma", 0.1)),
                            alpha, cfg.get("separating_tests", {}) or {})
         res["resolvability"] = rs
         weak = [r for r in rs if r["resolvable"] is False]
@@ -680,7 +659,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     order = select_params(Jc[train], z0[train], int(prof["calibration"]["max_params"]))
     sel = [pool[i] for i in order]
     ps = float(dcfg.get("prior_sigma", 0.1))
-    prior = priors(sel)
+    prior = {p.key: (p.start, ps) for p in sel}  # the design's own values
     log.append("calibration refit of " + ", ".join(p.key for p in sel) + " (orthogonal matching pursuit on the residual)")
     cal = gauss_newton(problem, design, {}, sel, train, int(prof["calibration"]["iterations"]), step, "calibration refit",
                        S0=S0, J0={pool[i].key: Jc[:, i] for i in order}, prior=prior)
@@ -810,7 +789,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         lv = lf.values
         rec_params = [FitParam(p.key, p.lo, p.hi, lv.get(p.key, p.start)) for p in lead.params + sel_l]
         J0r = {**{p.key: Jc[:, pool.index(p)] for p in sel_l}, **lf.J}
-        prior_l = priors(sel_l)  # as the first refit
+        prior_l = {p.key: (p.start, ps) for p in sel_l}  # around the design's own values, as the first refit
         # the start is the lead fit itself (every parameter it fitted is in rec_params, the others at the
         # design's values as in the lead fit): no new simulation for it
         recal = gauss_newton(problem, design, lead.overrides(), rec_params, train, its, step,
