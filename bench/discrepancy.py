@@ -52,8 +52,14 @@ DEV_KEYS = ["piston_rebound.a", "piston_rebound.F_preload", "piston_intake.a", "
 def cases(args, design, cfg, rng):
     cands = catalogue(design, cfg)
     out = []
+    keys = DEV_KEYS
+    if args.dev_keys == "pool":  # every calibration parameter (the oil temperature is the lab's bench condition)
+        keys = [k for k in cfg["calibration_pool"] if k != "oil.T"]
     for i in range(args.controls):
-        f = {k: float(np.exp(rng.normal(0, args.dev))) for k in DEV_KEYS}
+        f = {k: float(np.exp(rng.normal(0, args.dev))) for k in keys}
+        if "rod_friction.F_c" in f and "rod_friction.F_s" in f:  # a real seal keeps F_c <= F_s (eq. 4.41)
+            fs = f["rod_friction.F_s"] * design["rod_friction.F_s"]
+            f["rod_friction.F_c"] = min(f["rod_friction.F_c"], fs / design["rod_friction.F_c"])
         out.append(("control", [], {"factors": f}, None))
     for c in cands:
         for i in range(args.per_effect):
@@ -132,6 +138,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seeds every draw (magnitudes, deviations, lab noise)")
     ap.add_argument("--scale", type=float, default=1.0, help="hidden magnitude / typical magnitude")
     ap.add_argument("--dev", type=float, default=0.05, help="one-sigma log deviation of control parameters")
+    ap.add_argument("--dev-keys", choices=["valves", "pool"], default="valves",
+                    help="control deviations: valves = DEV_KEYS (valves, top mount k0 / c0, rod friction F_c); "
+                         "pool = every calibration_pool parameter but the oil temperature")
     ap.add_argument("--tests", default="flowbench:piston_rebound,flowbench:piston_intake,flowbench:base_compression,"
                                         "flowbench:base_intake,compliance:baseline,monosine:baseline_1.6,"
                                         "monosine:baseline_0.32,random:baseline_1.6,curving:baseline",
