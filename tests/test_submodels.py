@@ -235,3 +235,15 @@ def test_piston_leakage_conductance_is_laminar_annulus(p_base):
     G = math.pi * d["geometry.D_PT"] * d["piston_leakage.gap"] ** 3 / (12 * mu * d["piston_leakage.length"])
     assert p_base[L.P.G_LEAK] == pytest.approx(G, rel=1e-12)
     assert p_base[L.P.E_LEAK] == 0.0  # the thesis model has no leakage: off in the baseline
+
+
+def test_power_shortcuts_agree_with_pow():
+    """numerics.power: x ** a, with a = 1, 2, 1/2 as exact cheap operations
+    (within one ulp of libm's pow) and any other exponent unchanged."""
+    from dampertwin.model.numerics import power
+
+    rng = np.random.default_rng(3)
+    for x in np.concatenate([[0.0, 1.0], 10.0 ** rng.uniform(-8, 6, 200)]):
+        for a in (1.0, 2.0, 0.5, 0.8, 1.4, 3.0):
+            assert abs(power(x, a) - x ** a) <= np.spacing(x ** a), (x, a)
+        assert power(x, 0.8) == x ** 0.8

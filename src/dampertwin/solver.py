@@ -98,7 +98,7 @@ FD_EPS = 1.4901161193847656e-08  # sqrt(machine epsilon): forward-difference inc
 _JIT = dict(cache=True, error_model="numpy")  # 1/0 -> inf -> a NON_FINITE status, never an exception
 
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def _f(rhs, t, z, sc, p, ex, aux, dz, y, dy, out):
     """Scaled right-hand side: dz = rhs(t, z*sc) / sc."""
     n = z.shape[0]
@@ -158,6 +158,110 @@ def _lu_solve(a, piv, b):
         b[i] = s / a[i, i]
 
 
+LU_MAX_MULT = 1e3  # a static-pivot multiplier above this falls back to partial pivoting (threshold pivoting,
+#                   Duff, Erisman & Reid, Direct Methods for Sparse Matrices, 1986, sec. 5.4)
+
+
+def lu_plan(pattern: np.ndarray) -> np.ndarray:
+    """Static plan of a sparse LU of the iteration matrix d I - J for a
+    Jacobian sparsity ``pattern`` (bool [n, n]): the symbolic fill of Gaussian
+    elimination without pivoting in the states' own order, as the index lists
+    the compiled factor and solve walk. Packed in one int64 array:
+    [n, sparse flag, e_ptr(n+1), u_ptr(n+1), e_rows, u_cols], where
+    e_rows[e_ptr[k]:e_ptr[k+1]] are the rows i > k of column k of L and
+    u_cols[u_ptr[k]:u_ptr[k+1]] the columns j > k of row k of U.
+
+    The order is fixed (no fill-reducing permutation) so that extra pattern
+    entries whose values are exact zeros (a probe that found a spurious
+    dependency for one parameter set and not for another) leave every
+    floating-point operation on the true non-zeros unchanged: results stay
+    bit-identical. A pattern that fills in to more than half the matrix gets
+    the flag 0 (dense LU with partial pivoting)."""
+    P = np.asarray(pattern, bool)
+    n = P.shape[0]
+    F = P | np.eye(n, dtype=bool)
+    for k in range(n):
+        rows, cols = np.flatnonzero(F[k + 1:, k]) + k + 1, np.flatnonzero(F[k, k + 1:]) + k + 1
+        F[np.ix_(rows, cols)] = True
+    e = [np.flatnonzero(F[k + 1:, k]) + k + 1 for k in range(n)]
+    u = [np.flatnonzero(F[k, k + 1:]) + k + 1 for k in range(n)]
+    ptr = lambda lists: np.concatenate([[0], np.cumsum([len(x) for x in lists])])  # noqa: E731
+    sparse = int(F.sum() <= 0.5 * n * n)
+    return np.concatenate([[n, sparse], ptr(e), ptr(u), *e, *u]).astype(np.int64)
+
+
+@njit(**_JIT)
+def _it_factor(jac, d, a, piv, plan):
+    """Factorise the iteration matrix d I - jac into ``a`` (d = 1/(g h)).
+    Sparse static-pivot LU along ``plan`` (:func:`lu_plan`) when it holds
+    (pivots non-zero and finite, multipliers <= LU_MAX_MULT), otherwise the
+    dense LU with partial pivoting. Returns 1 (sparse), 2 (dense) or 0 (singular)."""
+    n = plan[0]
+    if plan[1] == 1:
+        ep, up = 2, 3 + n
+        er = 4 + 2 * n
+        uc = er + plan[ep + n]
+        ok = True
+        for i in range(n):  # the entries of the fill pattern; fill-ins start at zero
+            a[i, i] = d - jac[i, i]
+            for q in range(plan[up + i], plan[up + i + 1]):
+                j = plan[uc + q]
+                a[i, j] = -jac[i, j]
+            for q in range(plan[ep + i], plan[ep + i + 1]):
+                r = plan[er + q]
+                a[r, i] = -jac[r, i]
+        for k in range(n):
+            pv = a[k, k]
+            if pv == 0.0 or not math.isfinite(pv):
+                ok = False
+                break
+            for q in range(plan[ep + k], plan[ep + k + 1]):
+                i = plan[er + q]
+                m = a[i, k] / pv
+                if abs(m) > LU_MAX_MULT:
+                    ok = False
+                    break
+                a[i, k] = m
+                if m != 0.0:
+                    for s in range(plan[up + k], plan[up + k + 1]):
+                        j = plan[uc + s]
+                        a[i, j] -= m * a[k, j]
+            if not ok:
+                break
+        if ok:
+            return 1
+    for i in range(n):
+        for j in range(n):
+            a[i, j] = -jac[i, j]
+        a[i, i] += d
+    return 2 if _lu_factor(a, piv) else 0
+
+
+@njit(**_JIT)
+def _it_solve(a, piv, plan, mode, b):
+    """Solve (d I - jac) x = b in place with the factorisation of
+    :func:`_it_factor` (``mode`` its return value)."""
+    if mode == 2:
+        _lu_solve(a, piv, b)
+        return
+    n = plan[0]
+    ep, up = 2, 3 + n
+    er = 4 + 2 * n
+    uc = er + plan[ep + n]
+    for k in range(n):  # L (unit diagonal), column by column
+        bk = b[k]
+        if bk != 0.0:
+            for q in range(plan[ep + k], plan[ep + k + 1]):
+                i = plan[er + q]
+                b[i] -= a[i, k] * bk
+    for i in range(n - 1, -1, -1):  # U, row by row
+        s = b[i]
+        for q in range(plan[up + i], plan[up + i + 1]):
+            j = plan[uc + q]
+            s -= a[i, j] * b[j]
+        b[i] = s / a[i, i]
+
+
 @njit(**_JIT)
 def _fd_jacobian(rhs, t, z, f0, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y, dy,
                  out):
@@ -206,12 +310,12 @@ def fd_jacobian(rhs, t, z, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, 
 _STEP_SIG = types.UniTuple(types.float64, 3)(
     RHS, _A1, types.float64, types.float64, types.float64, _A1, _A2, _A1, _A1, types.float64, types.float64,
     types.float64, _A1, types.int64, _A2, _I1, _A1, types.int64[::1], types.int64, _I1, types.int64, _I1, _I1,
-    types.int64, types.float64, _A2, _A1)
+    _I1, types.int64, types.float64, _A2, _A1)
 
 
 @njit(_STEP_SIG, **_JIT)
 def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
-           channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h, jac, ft):
+           channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft):
     """Integrate scaled state z (in place) from t towards t_end, returning
     after the first accepted step that reaches t_pause (so pausing for a
     wall-time check never changes the step sequence). Writes selected output
@@ -228,6 +332,7 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
     zs = np.empty(n)
     a = np.empty((n, n))
     piv = np.empty(n, np.int64)
+    mode = 0
     k1 = np.empty(n)
     k2 = np.empty(n)
     k3 = np.empty(n)
@@ -263,47 +368,44 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
             if not h > H_MIN_REL * max(abs(t), 1.0):
                 ctrl[CT_H] = h
                 return float(STEP_UNDERFLOW), t, float(i_out)
-            for i in range(n):
-                for j in range(n):
-                    a[i, j] = -jac[i, j]
-                a[i, i] += 1.0 / (_G * h)
-            ok = _lu_factor(a, piv)
+            mode = _it_factor(jac, 1.0 / (_G * h), a, piv, lu_plan)
+            ok = mode > 0
             finite = ok
             err = 0.0
             if ok:
                 for i in range(n):
                     k1[i] = f0[i] + h * _D1 * ft[i]
-                _lu_solve(a, piv, k1)
+                _it_solve(a, piv, lu_plan, mode, k1)
                 for i in range(n):
                     yt[i] = z[i] + _A21 * k1[i]
                 _f(rhs, t + _C2 * h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     k2[i] = f1[i] + h * _D2 * ft[i] + _C21 * k1[i] / h
-                _lu_solve(a, piv, k2)
+                _it_solve(a, piv, lu_plan, mode, k2)
                 for i in range(n):
                     yt[i] = z[i] + _A31 * k1[i] + _A32 * k2[i]
                 _f(rhs, t + _C3 * h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     k3[i] = f1[i] + h * _D3 * ft[i] + (_C31 * k1[i] + _C32 * k2[i]) / h
-                _lu_solve(a, piv, k3)
+                _it_solve(a, piv, lu_plan, mode, k3)
                 for i in range(n):
                     yt[i] = z[i] + _A41 * k1[i] + _A42 * k2[i] + _A43 * k3[i]
                 _f(rhs, t + _C4 * h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     k4[i] = f1[i] + h * _D4 * ft[i] + (_C41 * k1[i] + _C42 * k2[i] + _C43 * k3[i]) / h
-                _lu_solve(a, piv, k4)
+                _it_solve(a, piv, lu_plan, mode, k4)
                 for i in range(n):
                     yt[i] = z[i] + _A51 * k1[i] + _A52 * k2[i] + _A53 * k3[i] + _A54 * k4[i]
                 _f(rhs, t + h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     k5[i] = f1[i] + (_C51 * k1[i] + _C52 * k2[i] + _C53 * k3[i] + _C54 * k4[i]) / h
-                _lu_solve(a, piv, k5)
+                _it_solve(a, piv, lu_plan, mode, k5)
                 for i in range(n):
                     yt[i] += k5[i]  # the embedded order-3 solution
                 _f(rhs, t + h, yt, sc, p, ex, aux, f1, y, dy, out)
                 for i in range(n):
                     err_v[i] = f1[i] + (_C61 * k1[i] + _C62 * k2[i] + _C63 * k3[i] + _C64 * k4[i] + _C65 * k5[i]) / h
-                _lu_solve(a, piv, err_v)
+                _it_solve(a, piv, lu_plan, mode, err_v)
                 stats[ST_FEVALS] += 5
                 for i in range(n):
                     znew[i] = yt[i] + err_v[i]  # the order-4 solution
@@ -390,7 +492,7 @@ def _jac_mul_add(jac, col_ptr, row_idx, v, c, acc):
 
 @njit(_STEP_SIG, **_JIT)
 def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
-             channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h, jac, ft):
+             channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft):
     """Same contract as :func:`rodas4`, with the ROS34PW2 Rosenbrock-W
     method: the Jacobian ``jac`` (and df/dt ``ft``) persist across steps and
     calls and are rebuilt only after a rejected step or JAC_MAX_AGE accepted
@@ -407,6 +509,7 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
     zs = np.empty(n)
     a = np.empty((n, n))
     piv = np.empty(n, np.int64)
+    mode = 0
     k1 = np.empty(n)
     k2 = np.empty(n)
     k3 = np.empty(n)
@@ -448,11 +551,8 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
                 ctrl[CT_H] = h
                 return float(STEP_UNDERFLOW), t, float(i_out)
             if h != lu_h:  # same J and h: the factorisation of I/(g h) - J is unchanged
-                for i in range(n):
-                    for j in range(n):
-                        a[i, j] = -jac[i, j]
-                    a[i, i] += 1.0 / (_WG * h)
-                lu_ok = _lu_factor(a, piv)
+                mode = _it_factor(jac, 1.0 / (_WG * h), a, piv, lu_plan)
+                lu_ok = mode > 0
                 lu_h = h if lu_ok else -1.0
             else:
                 lu_ok = True
@@ -463,7 +563,7 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
                 # stage 1
                 for i in range(n):
                     k1[i] = (f0[i] + _WG * h * ft[i]) / _WG  # divided by g: a holds (I/(g h) - J)
-                _lu_solve(a, piv, k1)
+                _it_solve(a, piv, lu_plan, mode, k1)
                 # stage 2
                 for i in range(n):
                     yt[i] = z[i] + _WA21 * k1[i]
@@ -473,7 +573,7 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
                 _jac_mul_add(jac, col_ptr, row_idx, k1, _WG21, k2)
                 for i in range(n):
                     k2[i] /= _WG
-                _lu_solve(a, piv, k2)
+                _it_solve(a, piv, lu_plan, mode, k2)
                 # stage 3
                 for i in range(n):
                     yt[i] = z[i] + _WA31 * k1[i] + _WA32 * k2[i]
@@ -484,7 +584,7 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
                 _jac_mul_add(jac, col_ptr, row_idx, k2, _WG32, k3)
                 for i in range(n):
                     k3[i] /= _WG
-                _lu_solve(a, piv, k3)
+                _it_solve(a, piv, lu_plan, mode, k3)
                 # stage 4 (z + k3: the stiffly accurate end point)
                 for i in range(n):
                     yt[i] = z[i] + k3[i]
@@ -496,7 +596,7 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
                 _jac_mul_add(jac, col_ptr, row_idx, k3, _WG43, k4)
                 for i in range(n):
                     k4[i] /= _WG
-                _lu_solve(a, piv, k4)
+                _it_solve(a, piv, lu_plan, mode, k4)
                 stats[ST_FEVALS] += 3
                 for i in range(n):
                     e = _WE1 * k1[i] + _WE2 * k2[i] + _WE3 * k3[i] + _WE4 * k4[i]
@@ -587,29 +687,29 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
 
 @njit(_STEP_SIG.return_type(types.int64, *_STEP_SIG.args), **_JIT)
 def step_chunk(method, rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
-               channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h, jac, ft):
+               channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft):
     """Dispatch to the integration method (RODAS4 | ROS34PW2)."""
     if method == ROS34PW2:
         return ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
-                        channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h,
+                        channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h,
                         jac, ft)
     return rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
-                  channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, fixed_h, jac, ft)
+                  channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft)
 
 
 @njit(types.void(types.int64, RHS, _A2, _A1, types.float64, types.float64, _A2, _A2, _A1, _A1, types.float64,
                  types.float64, types.float64, _A1, types.int64[::1], _A3, _I1, _A2, types.int64[:, ::1],
-                 types.int64[::1], types.int64, _I1, types.int64, _I1, _I1, types.int64, _A3, _A2),
+                 types.int64[::1], types.int64, _I1, types.int64, _I1, _I1, _I1, types.int64, _A3, _A2),
       parallel=True, **_JIT)
 def _batch_chunk(method, rhs, Z, T, t_end, t_pause, P, ex, aux, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
-                 channels, CTRL, STATS, STATUS, max_steps, colour, n_colours, col_ptr, row_idx, n_rhs_out, JAC, FT):
+                 channels, CTRL, STATS, STATUS, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, JAC, FT):
     m = Z.shape[0]
     for b in prange(m):
         if STATUS[b] >= 0:
             continue
         st, tb, io = step_chunk(method, rhs, Z[b], T[b], t_end, t_pause, P[b], ex, aux, sc, rtol, atol, h_max,
                                 t_out, I_OUT[b], OUT[b], channels, CTRL[b], STATS[b], max_steps, colour, n_colours,
-                                col_ptr, row_idx, n_rhs_out, 0.0, JAC[b], FT[b])
+                                col_ptr, row_idx, lu_plan, n_rhs_out, 0.0, JAC[b], FT[b])
         T[b] = tb
         I_OUT[b] = int(io)
         if int(st) != OK:
@@ -649,6 +749,7 @@ class Sparsity:
     n_colours: int
     col_ptr: np.ndarray  # CSC structure of the pattern
     row_idx: np.ndarray
+    lu_plan: np.ndarray  # sparse LU of the iteration matrix (:func:`lu_plan`)
 
     @classmethod
     def from_pattern(cls, J: np.ndarray) -> "Sparsity":
@@ -660,7 +761,7 @@ class Sparsity:
             r = np.flatnonzero(J[:, j])
             rows.extend(r)
             col_ptr[j + 1] = col_ptr[j] + len(r)
-        return cls(J, colour, nc, col_ptr, np.asarray(rows, np.int64))
+        return cls(J, colour, nc, col_ptr, np.asarray(rows, np.int64), lu_plan(J))
 
     @classmethod
     def dense(cls, n: int) -> "Sparsity":
@@ -776,7 +877,8 @@ def integrate(rhs, p, ex, aux, y0, t_out, *, scales=None, n_rhs_out=1, sparsity=
     jac, ft = np.zeros((n, n)), np.zeros(n)
     while t < t_final:
         st, t, io = step_chunk(meth, rhs, z, t, t_final, t + step, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out,
-                               out, channels, ctrl, stats, max_steps, *sp.args(), n_rhs_out, float(fixed_h), jac, ft)
+                               out, channels, ctrl, stats, max_steps, *sp.args(), sp.lu_plan, n_rhs_out, float(fixed_h),
+                               jac, ft)
         status, i_out = int(st), int(io)
         if status != OK:
             break
@@ -825,7 +927,7 @@ def integrate_batch(rhs, P, ex, aux, Y0, t_out, *, scales=None, n_rhs_out=1, spa
         t_pause = t + step
         T_before = T.copy()
         _batch_chunk(meth, rhs, Z, T, t_final, t_pause, P, ex, aux, sc, rtol, atol, h_max, t_out, I_OUT, OUT,
-                     channels, CTRL, STATS, STATUS, max_steps, *sp.args(), n_rhs_out, JAC, FT)
+                     channels, CTRL, STATS, STATUS, max_steps, *sp.args(), sp.lu_plan, n_rhs_out, JAC, FT)
         running = STATUS < 0
         done = running & (T >= t_final)
         STATUS[done] = OK

@@ -19,18 +19,26 @@ def pack_map(currents, dps, flow) -> np.ndarray:
     return np.concatenate([[len(currents), len(dps)], currents, dps, flow.ravel()])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def map_flow(current, dp, aux):
     """active_valve_flow on the map packed by :func:`pack_map`."""
     ni = int(aux[0])
     nj = int(aux[1])
     currents = aux[2:2 + ni]
     dps = aux[2 + ni:2 + ni + nj]
-    flow = aux[2 + ni + nj:2 + ni + nj + ni * nj].reshape((ni, nj))
-    return active_valve_flow(current, dp, currents, dps, flow)
+    s = 1.0
+    if dp < 0.0:
+        s = -1.0
+        dp = -dp
+    i, wi = _bracket(currents, current)
+    j, wj = _bracket(dps, dp)
+    f = 2 + ni + nj  # flow[i, j] at aux[f + i nj + j] (row-major; no reshape per call)
+    q0 = (1.0 - wj) * aux[f + i * nj + j] + wj * aux[f + i * nj + j + 1]
+    q1 = (1.0 - wj) * aux[f + (i + 1) * nj + j] + wj * aux[f + (i + 1) * nj + j + 1]
+    return s * ((1.0 - wi) * q0 + wi * q1)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _bracket(grid, v):
     """Index i and weight w with v = (1-w) grid[i] + w grid[i+1], clamped."""
     n = grid.shape[0]
@@ -49,7 +57,7 @@ def _bracket(grid, v):
     return lo, (v - grid[lo]) / (grid[lo + 1] - grid[lo])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def active_valve_flow(current, dp, currents, dps, flow):
     """Flow [m^3/s] from the third tube to the reserve at pressure drop dp [Pa]
     and current [A]; flow[i, j] is the map at currents[i], dps[j]."""
@@ -64,7 +72,7 @@ def active_valve_flow(current, dp, currents, dps, flow):
     return s * ((1.0 - wi) * q0 + wi * q1)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def active_flow(p, aux, dp):
     """The active valve in the assembled model: flow [m^3/s] at dp [Pa] and
     the test's current (parameter CURRENT), map in ``aux``."""

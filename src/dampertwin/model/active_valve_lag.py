@@ -29,7 +29,7 @@ def lag_rate(Q, Q_map, tau):
     return (Q_map - Q) / tau
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def lagged_flow(y, o, p, Q_map, dy):
     """The lag in the assembled (extended) model: returns the active valve's
     flow [m^3/s] and writes dy[o] (its state at y[o]); Q_map when off."""

@@ -33,7 +33,7 @@ def aerated_modulus(K, P, P_atm, alpha0, n):
     return 1.0 / ((1.0 - phi) / K + phi / (n * P))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def aeration(p, K_c, P_c):
     """The compression chamber's modulus [Pa] with the entrained air (K_c when off)."""
     if p[_L.P.E_AERATION] > 0.5:

@@ -29,7 +29,7 @@ def upstream_pressure_rate(K, V, Q_valve, Q_in):
     return -K / V * (Q_valve - Q_in)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def upstream_modulus(p, P_up):
     """Modulus of the bench's degassed oil (THESIS-ERRATA 37), with the
     cavitation factor when that effect is on [Pa]."""

@@ -73,7 +73,7 @@ def rod_force(P_r, P_c, A_r, A_b, P_atm, F_mu):
     return (P_r - P_atm) * A_r - (P_c - P_atm) * A_b + F_mu
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def oil_modulus(pressure, p):
     """Emulsion modulus (eq. 4.14-4.16) at absolute pressure [Pa], or K_oil
     when the gas-content effect is off."""
@@ -83,7 +83,7 @@ def oil_modulus(pressure, p):
     return p[_L.P.K_OIL]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def moduli(p, P_r, P_c, P_b, P_res):
     """Effective moduli [Pa] of the rebound, compression and third-tube
     chambers: oil / emulsion, in series with the walls (eq. 4.13, 4.17-4.18),

@@ -52,7 +52,7 @@ from .valves import bypass, valve
 SIGNATURE = rhs_signature()
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def excitation_at(t, p, ex):
     """Prescribed input and its rate at t (inputs.hermite on the test's grid)."""
     return hermite(t, p[P.EX_T0], p[P.EX_DT], ex)

@@ -85,6 +85,8 @@ def emulsion_denominator(P, K_oil, chi, P_sat, P_vap, P_ref, T, T_ref, Gamma):
     P = max(P, P_FLOOR)
     e = math.exp(-(P - P_ref) / K_oil)
     th, dth = gas_fraction(P, P_sat, P_vap)
+    if th == 0.0 and dth == 0.0:  # all gas dissolved: the gas terms are exact zeros, skip their pow call
+        return (1.0 - chi) * e, -(1.0 - chi) * e / K_oil
     g = (P_ref / P) ** (1.0 / Gamma)
     tt = chi * T / T_ref
     D = (1.0 - chi) * e + th * tt * g

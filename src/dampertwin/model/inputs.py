@@ -13,7 +13,7 @@ PARAMETERS = (
 )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def hermite(t, t0, dt, ex):
     """Input and its rate at t: cubic Hermite through samples ex[0] (value)
     and ex[1] (rate) spaced dt from t0; held outside the record."""

@@ -51,7 +51,7 @@ def temperature_rate(P_diss, T, T_amb, C_th, hA):
     return (P_diss - hA * (T - T_amb)) / C_th
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def oil_viscosity(y, o, p):
     """Kinematic viscosity [m^2/s] at the oil temperature y[o] (p[P.NU] when off)."""
     if p[_L.P.E_THERMAL] > 0.5:
@@ -59,7 +59,7 @@ def oil_viscosity(y, o, p):
     return p[_L.P.NU]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def thermal_moduli(y, o, p, K_r, K_c, K_b):
     """The chamber moduli [Pa] at the oil temperature y[o] (unchanged when off)."""
     if p[_L.P.E_THERMAL] > 0.5:
@@ -68,7 +68,7 @@ def thermal_moduli(y, o, p, K_r, K_c, K_b):
     return K_r, K_c, K_b
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def heat(y, o, p, P_diss, dy):
     """Writes dT/dt at dy[o] for the dissipated power P_diss [W] (0 when off)."""
     if p[_L.P.E_THERMAL] > 0.5:

@@ -37,7 +37,7 @@ def leakage_flow(G, P_r, P_c):
     return G * (P_r - P_c)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def leakage(p, P_r, P_c, fluidity):
     """The leakage submodel in the assembled model [m^3/s] (0 when off);
     ``fluidity`` = nu0 / nu (1.0 at the design's oil temperature)."""

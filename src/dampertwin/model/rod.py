@@ -46,19 +46,19 @@ def rod_acceleration(F_d, F_tm, M_rod):
     return (F_d - F_tm) / M_rod
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def stroke(y, o, u, du):
     """Stroke s = u - x_rod [m] and its rate [m/s] (THESIS-ERRATA 5)."""
     return u - y[o + R.x_rod], du - y[o + R.v_rod]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def rod_position(y, o):
     """Rod displacement and velocity: the top-mount deflection and its rate."""
     return y[o + R.x_rod], y[o + R.v_rod]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def motion(y, o, p, F_d, F_tm, dy):
     """Eq. 4.4 in the assembled model; writes dy[o + R.*], returns x_rod''."""
     a = rod_acceleration(F_d, F_tm, p[_L.P.M_ROD])

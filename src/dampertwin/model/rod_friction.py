@@ -11,6 +11,7 @@ import math
 from numba import njit
 
 from .declarations import Parameter, State, index_enum
+from .numerics import power
 from .rod_friction_asymmetric import direction_factor
 from .seal_friction_pressure import pressure_friction
 
@@ -33,7 +34,7 @@ Z = index_enum("Z", [s.name for s in STATES], __name__)  # offsets inside this s
 @njit(cache=True, error_model="numpy")
 def stribeck(dv, F_c, F_s, a_s, alpha_s):
     """g(dv) = F_c + (F_s - F_c) exp(-(|dv|/a_s)^alpha_s), eq. 4.41 (errata 34)."""
-    return F_c + (F_s - F_c) * math.exp(-((abs(dv) / a_s) ** alpha_s))
+    return F_c + (F_s - F_c) * math.exp(-power(abs(dv) / a_s, alpha_s))
 
 
 @njit(cache=True, error_model="numpy")
@@ -46,7 +47,7 @@ def lugre(z, dv, k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s):
     return dz, k_b * z + s1 * dz + s2 * dv
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def friction(y, o, p, dv, dy, P_r):
     """The rod-friction submodel in the assembled model: friction force [N]
     at extension rate dv [m/s] and rebound pressure P_r [Pa]; writes its

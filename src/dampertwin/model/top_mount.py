@@ -11,6 +11,7 @@ from __future__ import annotations
 from numba import njit
 
 from .declarations import Parameter, State, index_enum
+from .numerics import power
 from .top_mount_backlash import backlash
 
 N_FLD = 5  # coefficients of the static load-deflection polynomial
@@ -44,7 +45,7 @@ STATES = (
 TM = index_enum("TM", [s.name for s in STATES], __name__)  # offsets inside this submodel's state block
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def static_force(X, coef):
     """Static load-deflection polynomial F_LD(X) = sum_k coef[k-1] X^k, k >= 1 [N]."""
     f = 0.0
@@ -64,19 +65,19 @@ def top_mount_rates(Xdot, x, y, w, R, k0, k1, k2, c0, c1, c2):
     return xd, yd, wd
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, coef, dynamics):
     """Bushing force eq. 4.35-4.37, F = K y + C w' + F_LD(X) [N]; with
     ``dynamics`` false only the static curve."""
     F = static_force(X, coef)
     if dynamics:
-        K = k0 * (p0 + p1 * abs(y / y_unit) ** p2)  # eq. 4.35
-        C = c0 * (q0 + q1 * abs(wd / w_unit) ** q2)  # eq. 4.36
+        K = k0 * (p0 + p1 * power(abs(y / y_unit), p2))  # eq. 4.35
+        C = c0 * (q0 + q1 * power(abs(wd / w_unit), q2))  # eq. 4.36
         F += K * y + C * wd  # eq. 4.37
     return F
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def mount(y, o, p, X, Xdot, dy):
     """The top-mount submodel in the assembled model: force [N] at deflection
     X [m] and rate Xdot [m/s]; writes its state rates into dy[o + TM.*]

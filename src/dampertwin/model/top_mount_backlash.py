@@ -46,7 +46,7 @@ def inverse_dead_zone(Xe: float, delta: float, eps: float) -> float:
     return X
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def backlash(p, X, Xdot):
     """Deflection and rate [m, m/s] the rubber sees (X, Xdot when off)."""
     if p[_L.P.E_BACKLASH] > 0.5:

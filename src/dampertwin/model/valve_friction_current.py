@@ -42,7 +42,7 @@ def dead_band(dp, dp_f, eps):
     return smooth_ramp(dp - dp_f, eps) - smooth_ramp(-dp - dp_f, eps)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def effective_drop(p, dp):
     """The pressure drop [Pa] the active valve's map sees (dp when off)."""
     if p[_L.P.E_VALVE_FRICTION] > 0.5:

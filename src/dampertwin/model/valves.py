@@ -14,6 +14,7 @@ import math
 from numba import njit
 
 from .declarations import Parameter, State, index_enum
+from .numerics import power
 
 VALVE_NAMES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
 SHIM_VALVES = ("piston_rebound", "base_compression")  # shim stacks: Dahl friction state
@@ -59,7 +60,7 @@ V_SIZE = len(VALVE_PARAMETERS)
 # Parameters shared by all valves and orifices.
 PARAMETERS = (
     Parameter("P_TR", "Pa", "constants.p_transition", "laminar-turbulent transition of the orifice law (errata 26)"),
-    Parameter("ZETA", "rad", "constants.zeta", "jet angle, eq. 4.24"),
+    Parameter("SIN_ZETA", "-", lambda d: math.sin(d["constants.zeta"]), "sine of the jet angle zeta, eq. 4.24"),
     Parameter("K_C", "N/m", "constants.k_contact", "seat / stop contact stiffness (errata 27)"),
     Parameter("ZETA_C", "-", "constants.zeta_contact", "contact damping ratio"),
     Parameter("DELTA_C", "m", "constants.delta_contact", "penetration over which contact damping ramps in"),
@@ -110,7 +111,7 @@ def regularised_sqrt(dp, p_tr):
     """sign(dp) sqrt|dp| for |dp| >> p_tr, linear (laminar) below the
     transition pressure p_tr: dp / (dp^2 + p_tr^2)^(1/4) (THESIS-ERRATA 26).
     Odd, smooth and monotone."""
-    return dp / (dp * dp + p_tr * p_tr) ** 0.25
+    return dp / math.sqrt(math.sqrt(dp * dp + p_tr * p_tr))  # (.)^(1/4) as two square roots: no pow call
 
 
 @njit(cache=True, error_model="numpy")
@@ -160,9 +161,10 @@ def intake_flow_area(x, D_d, D_i):
 
 
 @njit(cache=True, error_model="numpy")
-def jet_force(cq, A_f, dp, zeta):
-    """Flow momentum force, eq. 4.24, acting to open (THESIS-ERRATA 23) [N]."""
-    return 2.0 * cq * cq * A_f * dp * math.sin(zeta)
+def jet_force(cq, A_f, dp, sin_zeta):
+    """Flow momentum force, eq. 4.24, acting to open (THESIS-ERRATA 23) [N];
+    ``sin_zeta`` the sine of the jet angle (a packed parameter, computed once)."""
+    return 2.0 * cq * cq * A_f * dp * sin_zeta
 
 
 @njit(cache=True, error_model="numpy")
@@ -188,7 +190,7 @@ def dahl_rate(F, xdot, sigma0, F_c, alpha):
     base = 1.0 - F / F_c * s
     if base <= 0.0:
         return 0.0
-    return sigma0 * base ** alpha * xdot
+    return sigma0 * power(base, alpha) * xdot
 
 
 @njit(cache=True, error_model="numpy")
@@ -206,7 +208,7 @@ def contact_force(x, v, x_max, k_c, c_c, delta):
     return f
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def valve_flow(p, o, x, dp, rho, nu, p_tr, use_cq_lambda, use_slot):
     """Flow through one valve [m^3/s] and the share of dp seen by the disc.
 
@@ -234,8 +236,8 @@ def valve_flow(p, o, x, dp, rho, nu, p_tr, use_cq_lambda, use_slot):
     return orifice_flow(G, dp, rho, p_tr), dp_disc, cq, A_f
 
 
-@njit(cache=True, error_model="numpy")
-def valve_acceleration(p, o, x, v, F_dahl, dp_disc, cq, A_f, mu, zeta, k_c, zeta_c, delta,
+@njit(cache=True, error_model="numpy", inline="always")
+def valve_acceleration(p, o, x, v, F_dahl, dp_disc, cq, A_f, mu, sin_zeta, k_c, zeta_c, delta,
                        use_jet, use_stiction, use_friction):
     """Equation of motion eq. 4.20: m x'' = -c x' - F_k + F_st + F_dp - F_mu + F_m + F_contact.
     Returns (x'', dF_dahl/dt)."""
@@ -247,7 +249,7 @@ def valve_acceleration(p, o, x, v, F_dahl, dp_disc, cq, A_f, mu, zeta, k_c, zeta
         F_dp = intake_pressure_force(dp_disc, p[o + V.DD], p[o + V.DH])
     F = F_dp - p[o + V.C] * v - stiffness_force(x, p[o + V.PRE], p[o + V.A], p[o + V.B], p[o + V.CC], p[o + V.D])
     if use_jet:
-        F += jet_force(cq, A_f, dp_disc, zeta)
+        F += jet_force(cq, A_f, dp_disc, sin_zeta)
     if use_stiction and not shim:
         F += stiction_force(x, v, mu, p[o + V.XV0], p[o + V.DD], p[o + V.DI])
     dF = 0.0
@@ -259,7 +261,7 @@ def valve_acceleration(p, o, x, v, F_dahl, dp_disc, cq, A_f, mu, zeta, k_c, zeta
     return F / m, dF
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def valve(y, o, k, p, p1, p2, dy, nu):
     """Valve k (parameter block k) in the assembled model, its states at
     y[o + VS.*], between upstream p1 and downstream p2 [Pa], oil viscosity
@@ -273,7 +275,7 @@ def valve(y, o, k, p, p1, p2, dy, nu):
     rho = p[_L.P.RHO]
     Q, dp_disc, cq, A_f = valve_flow(p, b, x, p1 - p2, rho, nu, p[_L.P.P_TR],
                                      p[_L.P.E_CQ] > 0.5, p[_L.P.E_SLOT] > 0.5)
-    a, dF = valve_acceleration(p, b, x, v, F_dahl, dp_disc, cq, A_f, rho * nu, p[_L.P.ZETA],
+    a, dF = valve_acceleration(p, b, x, v, F_dahl, dp_disc, cq, A_f, rho * nu, p[_L.P.SIN_ZETA],
                                p[_L.P.K_C], p[_L.P.ZETA_C], p[_L.P.DELTA_C], p[_L.P.E_JET] > 0.5,
                                p[_L.P.E_STICTION] > 0.5, p[_L.P.E_SHIM_FRICTION] > 0.5)
     dy[o + VS.x] = v
@@ -283,7 +285,7 @@ def valve(y, o, k, p, p1, p2, dy, nu):
     return Q
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def bypass(p, P_r, P_b):
     """Bypass orifice rebound chamber -> third tube [m^3/s] (eq. 4.29)."""
     return orifice_flow(p[_L.P.CQ_BP] * p[_L.P.A_BP], P_r - P_b, p[_L.P.RHO], p[_L.P.P_TR])
