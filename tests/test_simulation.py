@@ -242,3 +242,25 @@ def test_bad_configuration_and_excitation_rejected(base, mono_short):
         simulate(base, mono_short, "valve", bench_valve="piston_rebound")
     with pytest.raises(ValueError, match="bench_valve"):
         simulate(base, Excitation.constant_rate(1e-4, 0.1, kind="flow"), "valve")
+
+
+def test_default_integrator_follows_the_tolerance(base):
+    """``method=None`` is ROS34PW2 at the fits' tolerance and Rodas4 at tight
+    ones (the lab's truth); simulate and simulate_batch both follow it, and
+    the two methods agree on the mono-sine force within their tolerance."""
+    from dampertwin.simulation import TIGHT_RTOL, default_method
+
+    assert default_method(1e-4) == "ros34pw2" and default_method(1e-3) == "ros34pw2"
+    assert default_method(TIGHT_RTOL) == "rodas4" and default_method(1e-8) == "rodas4"
+    ex = Excitation.sine(0.005, 13.0, 2 / 13.0)
+    default = simulate(base, ex, "module")
+    w = simulate(base, ex, "module", method="ros34pw2")
+    assert np.array_equal(default["rod force [N]"], w["rod force [N]"])
+    _, batch, status = simulate_batch([base], ex, "module", channels=["rod force [N]"])
+    assert status[0] == 0 and np.array_equal(batch["rod force [N]"][0], w["rod force [N]"])
+    tight_default = simulate(base, ex, "module", rtol=1e-6)
+    tight_rodas = simulate(base, ex, "module", rtol=1e-6, method="rodas4")
+    assert np.array_equal(tight_default["rod force [N]"], tight_rodas["rod force [N]"])
+    assert tight_default.stats.jacobians == tight_default.stats.accepted  # Rodas4: a Jacobian every step
+    F, Ft = w["rod force [N]"], tight_rodas["rod force [N]"]
+    assert np.max(np.abs(F - Ft)) < 2e-3 * np.max(np.abs(Ft))

@@ -19,7 +19,15 @@ from .model.sparsity import sparsity
 from .solver import STATUS_TEXT, RunStats, integrate, integrate_batch
 
 DEFAULT_RATE = 10_000.0  # [Hz] output sampling
-DEFAULT_METHOD = "rodas4"  # order 4; "ros34pw2" (Rosenbrock-W, Jacobian reused) is cheaper per step but less accurate on acceleration spikes (bench/README.md)
+# Integrator by tolerance (bench/README.md "Speed levers"): at the fits' tolerances the Rosenbrock-W method
+# ROS34PW2 (order 3, Jacobian kept over steps) is the cheaper one; at tight tolerances (the lab's truth, 1e-8)
+# the order-4 Rodas4 takes far fewer steps. ``method=None`` picks by rtol.
+TIGHT_RTOL = 1e-6  # rtol at or below this: "rodas4", above: "ros34pw2"
+
+
+def default_method(rtol: float) -> str:
+    """The integrator ``simulate`` uses when none is named: "rodas4" at rtol <= TIGHT_RTOL, else "ros34pw2"."""
+    return "rodas4" if rtol <= TIGHT_RTOL else "ros34pw2"
 CHUNK_S = 0.25  # [s] simulated time between wall-time checks
 DEFAULT_RTOL = 1e-4  # KPIs within 0.01 % of rtol 1e-8 on the 13 Hz mono-sine (bench/solver.py)
 
@@ -121,12 +129,12 @@ def simulate(design: Design, excitation: Excitation, configuration: str = "modul
              current: float = 1.6, effects: dict | None = None, bench_valve: str | None = None,
              rate: float = DEFAULT_RATE, duration: float | None = None, rtol: float = DEFAULT_RTOL,
              atol: float | None = None, max_steps: int = 2_000_000, max_wall_s: float | None = 600.0,
-             h_max: float = 1e-3, bench: dict | None = None, method: str = DEFAULT_METHOD) -> Result:
+             h_max: float = 1e-3, bench: dict | None = None, method: str | None = None) -> Result:
     """Simulate one test. ``configuration`` is "valve" (flow bench; needs
     ``bench_valve``), "damper" (rod fixed), "module" (rod on the top mount) or
     "topmount" (the top mount alone, deflection prescribed).
     Outputs are sampled at ``rate`` [Hz]; ``method`` is the integrator
-    ("rodas4" default, or "ros34pw2"). A run that hits the step or
+    ("ros34pw2" or "rodas4"; default: by rtol, :func:`default_method`). A run that hits the step or
     wall-time cap returns with ``result.ok`` False and NaN after the stop.
     ``bench`` sets the flow bench (``bench_volume`` [m^3], ``bench_back_pressure`` [Pa])."""
     cfg, p = _setup(design, excitation, configuration, current, effects, bench_valve, bench)
@@ -140,7 +148,7 @@ def simulate(design: Design, excitation: Excitation, configuration: str = "modul
     ex = excitation.array()
     kw, rhs = _problem(configuration, cfg, p[None, :], ex, aux, t_out)
     out, _, stats = integrate(rhs, p, ex, aux, y0, t_out, rtol=rtol, atol=atol, max_steps=max_steps,
-                              max_wall_s=max_wall_s, h_max=h_max, method=method, **kw)
+                              max_wall_s=max_wall_s, h_max=h_max, method=method or default_method(rtol), **kw)
     return Result(configuration, t_out, _channels(cfg, out), stats, design.hash(), current)
 
 
@@ -149,7 +157,7 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
                    rate: float = DEFAULT_RATE, duration: float | None = None, rtol: float = DEFAULT_RTOL,
                    atol: float | None = None, max_steps: int = 2_000_000, max_wall_s: float | None = None,
                    h_max: float = 1e-3, channels: list[str] | None = None, bench: dict | None = None,
-                   method: str = DEFAULT_METHOD):
+                   method: str | None = None):
     """Run many designs (a GA population) through one test in parallel
     threads. All designs must share one active-valve map. Returns
     (time, {column: array[m, n_t]}, statuses[m]) — status 0 is ok."""
@@ -183,7 +191,7 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
     valid = P[~invalid] if np.any(~invalid) else P[:1]
     kw, rhs = _problem(configuration, cfg, valid, ex, aux, t_out)
     OUT, status, _ = integrate_batch(rhs, P, ex, aux, Y0, t_out, rtol=rtol, atol=atol, max_steps=max_steps,
-                                     max_wall_s=max_wall_s, h_max=h_max, channels=idx, skip=invalid, method=method,
+                                     max_wall_s=max_wall_s, h_max=h_max, channels=idx, skip=invalid, method=method or default_method(rtol),
                                      **kw)
     return t_out, {c: OUT[:, :, k] for k, c in enumerate(cols)}, status
 

@@ -24,14 +24,12 @@ def map_flow(current, dp, aux):
     """active_valve_flow on the map packed by :func:`pack_map`."""
     ni = int(aux[0])
     nj = int(aux[1])
-    currents = aux[2:2 + ni]
-    dps = aux[2 + ni:2 + ni + nj]
     s = 1.0
     if dp < 0.0:
         s = -1.0
         dp = -dp
-    i, wi = _bracket(currents, current)
-    j, wj = _bracket(dps, dp)
+    i, wi = _bracket(aux, 2, ni, current)  # the grids read in place: a slice costs a reference count per call
+    j, wj = _bracket(aux, 2 + ni, nj, dp)
     f = 2 + ni + nj  # flow[i, j] at aux[f + i nj + j] (row-major; no reshape per call)
     q0 = (1.0 - wj) * aux[f + i * nj + j] + wj * aux[f + i * nj + j + 1]
     q1 = (1.0 - wj) * aux[f + (i + 1) * nj + j] + wj * aux[f + (i + 1) * nj + j + 1]
@@ -39,22 +37,22 @@ def map_flow(current, dp, aux):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _bracket(grid, v):
-    """Index i and weight w with v = (1-w) grid[i] + w grid[i+1], clamped."""
-    n = grid.shape[0]
-    if v <= grid[0]:
+def _bracket(grid, o, n, v):
+    """Index i and weight w with v = (1-w) g[i] + w g[i+1], clamped, on the
+    grid g = grid[o:o + n]."""
+    if v <= grid[o]:
         return 0, 0.0
-    if v >= grid[n - 1]:
+    if v >= grid[o + n - 1]:
         return n - 2, 1.0
     lo = 0
     hi = n - 1
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if grid[mid] <= v:
+        if grid[o + mid] <= v:
             lo = mid
         else:
             hi = mid
-    return lo, (v - grid[lo]) / (grid[lo + 1] - grid[lo])
+    return lo, (v - grid[o + lo]) / (grid[o + lo + 1] - grid[o + lo])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -65,8 +63,8 @@ def active_valve_flow(current, dp, currents, dps, flow):
     if dp < 0.0:
         s = -1.0
         dp = -dp
-    i, wi = _bracket(currents, current)
-    j, wj = _bracket(dps, dp)
+    i, wi = _bracket(currents, 0, currents.shape[0], current)
+    j, wj = _bracket(dps, 0, dps.shape[0], dp)
     q0 = (1.0 - wj) * flow[i, j] + wj * flow[i, j + 1]
     q1 = (1.0 - wj) * flow[i + 1, j] + wj * flow[i + 1, j + 1]
     return s * ((1.0 - wi) * q0 + wi * q1)

@@ -58,7 +58,7 @@ def excitation_at(t, p, ex):
     return hermite(t, p[P.EX_T0], p[P.EX_DT], ex)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _damper(t, y, p, ex, aux, dy, out, module, extended):
     """Damper (rod fixed, eq. 4.1: stroke s = u) or module (eq. 4.4: the rod
     on the top mount, s = u - x_rod); ``extended``: with the effect states."""
@@ -151,31 +151,31 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     out[O.DVG] = dy[S.V_g]
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy")
+@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_damper(t, y, p, ex, aux, dy, out):
     """Damper configuration: tube displacement prescribed, rod fixed."""
     _damper(t, y, p, ex, aux, dy, out, False, False)
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy")
+@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_module(t, y, p, ex, aux, dy, out):
     """Module configuration: the rod on the top mount (eq. 4.4)."""
     _damper(t, y, p, ex, aux, dy, out, True, False)
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy")
+@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_damper_x(t, y, p, ex, aux, dy, out):
     """Damper configuration with the effect states (layout.CFG_DAMPER_X)."""
     _damper(t, y, p, ex, aux, dy, out, False, True)
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy")
+@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_module_x(t, y, p, ex, aux, dy, out):
     """Module configuration with the effect states (layout.CFG_MODULE_X)."""
     _damper(t, y, p, ex, aux, dy, out, True, True)
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy")
+@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_valve(t, y, p, ex, aux, dy, out):
     """Flow bench (thesis 2.7.2, 6.2.1): prescribed flow Q_in into an
     upstream volume of gas-free oil, one valve to a constant back pressure."""
@@ -196,7 +196,7 @@ def rhs_valve(t, y, p, ex, aux, dy, out):
     out[O.Q0] = Q
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy")
+@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_topmount(t, y, p, ex, aux, dy, out):
     """Top-mount test bench (thesis 6.4): deflection X(t) prescribed, force out."""
     for i in range(out.shape[0]):

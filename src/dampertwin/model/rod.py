@@ -35,7 +35,9 @@ def static_rod_offset(q) -> float:
 
 STATES = (
     State("x_rod", "m", 1e-4, static_rod_offset, "rod displacement (top-mount deflection)"),
-    State("v_rod", "m/s", 1e-2, 0.0, "rod velocity"),
+    # scale: the rod's velocity on the top mount reaches 0.1-0.4 m/s in the standard tests; 1e-2 held the
+    # error of 1,175 of the 3,272 steps of bench/solver.py at 1e-6 m/s (bench/README.md "State scales")
+    State("v_rod", "m/s", 1e-1, 0.0, "rod velocity"),
 )
 R = index_enum("R", [s.name for s in STATES], __name__)  # offsets inside this submodel's state block
 

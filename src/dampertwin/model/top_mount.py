@@ -46,12 +46,13 @@ TM = index_enum("TM", [s.name for s in STATES], __name__)  # offsets inside this
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def static_force(X, coef):
-    """Static load-deflection polynomial F_LD(X) = sum_k coef[k-1] X^k, k >= 1 [N]."""
+def static_force(X, coef, o, n):
+    """Static load-deflection polynomial F_LD(X) = sum_k coef[o + k-1] X^k, k = 1..n [N]
+    (the coefficients read in place: a slice would cost a reference count per call)."""
     f = 0.0
     xp = X
-    for k in range(coef.shape[0]):
-        f += coef[k] * xp
+    for k in range(n):
+        f += coef[o + k] * xp
         xp *= X
     return f
 
@@ -66,10 +67,10 @@ def top_mount_rates(Xdot, x, y, w, R, k0, k1, k2, c0, c1, c2):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, coef, dynamics):
-    """Bushing force eq. 4.35-4.37, F = K y + C w' + F_LD(X) [N]; with
-    ``dynamics`` false only the static curve."""
-    F = static_force(X, coef)
+def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, coef, o, dynamics):
+    """Bushing force eq. 4.35-4.37, F = K y + C w' + F_LD(X) [N] (F_LD's
+    coefficients at coef[o:o + N_FLD]); with ``dynamics`` false only the static curve."""
+    F = static_force(X, coef, o, N_FLD)
     if dynamics:
         K = k0 * (p0 + p1 * power(abs(y / y_unit), p2))  # eq. 4.35
         C = c0 * (q0 + q1 * power(abs(wd / w_unit), q2))  # eq. 4.36
@@ -92,7 +93,7 @@ def mount(y, o, p, X, Xdot, dy):
     dyn = p[_L.P.E_TM_DYNAMICS] > 0.5
     F = top_mount_force(X, yy, wd, p[_L.P.TM_P0], p[_L.P.TM_P1], p[_L.P.TM_P2], p[_L.P.TM_Q0], p[_L.P.TM_Q1],
                         p[_L.P.TM_Q2], p[_L.P.TM_K0], p[_L.P.TM_C0], p[_L.P.TM_YU], p[_L.P.TM_WU],
-                        p[_L.P.TM_FLD0:_L.P.TM_FLD0 + N_FLD], dyn)
+                        p, _L.P.TM_FLD0, dyn)
     dy[o + TM.tm_x] = xd if dyn else 0.0
     dy[o + TM.tm_y] = yd if dyn else 0.0
     dy[o + TM.tm_w] = wd if dyn else 0.0

@@ -88,7 +88,8 @@ def valve_states(valve: str, k: int | None = None, dahl: bool | None = None) -> 
     st = (State(f"x_{valve}", "m", 1e-4, lift, f"lift of the {valve} valve (seated at rest)"),
           State(f"v_{valve}", "m/s", 1.0 if k is not None else 1e-1, 0.0, f"velocity of the {valve} valve"))
     if valve in SHIM_VALVES if dahl is None else dahl:
-        st += (State(f"F_dahl_{valve}", "N", 1.0, 0.0, f"Dahl friction force of the {valve} valve"),)
+        # scale: the friction level F_c of a shim stack (10-15 N in the baseline), not 1 N (bench/README.md "State scales")
+        st += (State(f"F_dahl_{valve}", "N", 10.0, 0.0, f"Dahl friction force of the {valve} valve"),)
     return st
 
 
