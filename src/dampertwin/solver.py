@@ -1,11 +1,14 @@
 """Compiled adaptive stiff integrator for any compiled right-hand side.
 
-Rodas4 (Hairer & Wanner, Solving ODEs II, 1996: the 6-stage, order-4(3),
-stiffly accurate Rosenbrock method of their RODAS code, with its dense output)
-compiled with numba, on scaled states, with a compiled coloured
-finite-difference Jacobian, dense output written at the requested sampling
-times, and caps on steps (inside) and wall time (between chunks). No Python
-runs per time step. ``integrate_batch`` runs many parameter sets in parallel
+Two Rosenbrock methods compiled with numba: Rodas4 (Hairer & Wanner, Solving
+ODEs II, 1996: the 6-stage, order-4(3), stiffly accurate method of their RODAS
+code, with its dense output; a Jacobian every step) and ROS34PW2 (Rang &
+Angermann 2005: order 3(2), a W-method, so the Jacobian is kept over steps).
+Both work on scaled states, with a compiled coloured finite-difference
+Jacobian, a sparse LU of the iteration matrix along a static fill plan
+(:func:`lu_plan`, partial pivoting as the fallback), dense output written at
+the requested sampling times, and caps on steps (inside) and wall time
+(between chunks). No Python runs per time step. ``integrate_batch`` runs many parameter sets in parallel
 threads (``prange``) for GA populations.
 
 The right-hand side is a first-class compiled function with the signature
