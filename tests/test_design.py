@@ -313,3 +313,36 @@ def test_design_pickles_for_process_pools(base):
     assert e.hash() == d.hash() and e.dumps() == d.dumps() and e.hash() != base.hash()
     with pytest.raises(TypeError):
         e.effects["oil_thermal"] = False
+
+
+def test_design_is_immutable_so_its_cached_hash_and_pack_cannot_go_stale(base):
+    """Design caches its hash and packed parameter vector (Design.memo): every
+    route that could change a design after construction must be closed."""
+    import pickle
+    from types import MappingProxyType
+
+    from dampertwin.model.params import pack
+
+    h, p1 = base.hash(), pack(base, current=1.0)
+    # the constructor copies plain dicts: changing the caller's dict afterwards changes nothing
+    params = dict(base.parameters)
+    d = Design(base.name, base.description, params, dict(base.constants), dict(base.effects), base.pq_map,
+               effect_params=dict(base.effect_params))
+    assert d.hash() == h
+    params[1] = params[2]
+    assert isinstance(d.parameters, MappingProxyType) and d.parameters[1] == base.parameters[1]
+    assert d.hash() == h
+    with pytest.raises(TypeError):
+        d.constants["zeta"] = None
+    for a in (base.pq_map.flow, base.pq_map.currents, base.pq_map.dps):
+        with pytest.raises(ValueError, match="read-only"):
+            a[0] = 1.0
+    q = pickle.loads(pickle.dumps(base))  # process pools
+    assert not q.pq_map.flow.flags.writeable and q.hash() == h
+    # pack hands out a fresh, writable vector: the caller's edits do not reach the cache
+    p1[:] = -1.0
+    p2 = pack(base, current=1.0)
+    assert p2.flags.writeable and np.array_equal(p2, pack(load(BASELINE), current=1.0))
+    # the cache is keyed by the effect switches
+    on = pack(base, current=1.0, effects={"rod_friction": not base.effects["rod_friction"]})
+    assert not np.array_equal(on, p2)

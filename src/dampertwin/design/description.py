@@ -236,6 +236,16 @@ class PQMap:
     dps: np.ndarray
     flow: np.ndarray
 
+    def __post_init__(self):
+        # read-only copies: a Design caches what it derives from the map (its hash), so the map cannot change
+        for name in ("currents", "dps", "flow"):
+            a = np.array(getattr(self, name), float)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    def __reduce__(self):
+        return (PQMap, (self.currents, self.dps, self.flow))
+
     def __eq__(self, other):
         return (
             isinstance(other, PQMap)
@@ -267,6 +277,19 @@ class Design:
     path: Path | None = field(default=None, compare=False)
     map_dirs: tuple = field(default=(), compare=False)  # extra folders the P/Q map may live in
     effect_params: Mapping[str, EffectParameter] = field(default_factory=lambda: MappingProxyType({}))
+    _memo: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        # read-only views of private copies: a Design never changes, so what is derived from it
+        # (hash, the packed parameter vector) is computed once and kept in _memo
+        for name in ("parameters", "constants", "effects", "effect_params"):
+            object.__setattr__(self, name, MappingProxyType(dict(getattr(self, name))))
+
+    def memo(self, key, compute):
+        """``compute()`` once per design and key (the design is immutable)."""
+        if key not in self._memo:
+            self._memo[key] = compute()
+        return self._memo[key]
 
     def __reduce__(self):
         """Picklable (process pools run designs in other processes): the
@@ -434,6 +457,9 @@ class Design:
         """Stable content hash (hex sha256, 16 chars) of everything that
         affects results: values, types, units, bounds, constants, effects and
         the P/Q map data (not its file name, not descriptions)."""
+        return self.memo("hash", self._content_hash)
+
+    def _content_hash(self) -> str:
         content = {
             "p": [
                 [p.no, p.type, p.unit, None if BY_NUMBER[p.no].kind == "table" else _canon(p.value), _canon(p.bounds)]

@@ -52,6 +52,16 @@ def pack(design: Design, current: float = 1.6, effects: dict | None = None,
     missing = set(EFFECT_INDEX) - set(eff)
     if missing:
         raise ValueError(f"design {design.name!r}: effects {sorted(missing)} not set")
+    p = design.memo(("pack", tuple(sorted(eff.items()))), lambda: _pack_design(design, eff)).copy()
+    p[P.CURRENT] = current
+    p[P.BENCH_V] = bench_volume
+    p[P.BENCH_P_DOWN] = bench_back_pressure
+    p[P.BENCH_VALVE] = VALVE_NAMES.index(bench_valve) if bench_valve else 0
+    return p
+
+
+def _pack_design(design: Design, eff: dict) -> np.ndarray:
+    """The design's part of the parameter vector (test conditions left 0)."""
     for name, on in eff.items():
         lacking = [k for k in EFFECT_PARAMETERS if on and k.startswith(name + ".") and k not in design.effect_params]
         if lacking:
@@ -64,10 +74,7 @@ def pack(design: Design, current: float = 1.6, effects: dict | None = None,
         o = P.VALVES + k * V_SIZE
         for decl in VALVE_PARAMETERS:
             p[o + V[decl.name]] = float(decl.source(design, valve))
-    p[P.CURRENT] = current
-    p[P.BENCH_V] = bench_volume
-    p[P.BENCH_P_DOWN] = bench_back_pressure
-    p[P.BENCH_VALVE] = VALVE_NAMES.index(bench_valve) if bench_valve else 0
+    p.setflags(write=False)
     return p
 
 
