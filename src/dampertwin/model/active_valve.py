@@ -21,7 +21,9 @@ def pack_map(currents, dps, flow) -> np.ndarray:
 
 @njit(cache=True, error_model="numpy", inline="always")
 def map_flow(current, dp, aux):
-    """active_valve_flow on the map packed by :func:`pack_map`."""
+    """Flow [m^3/s] from the third tube to the reserve at pressure drop dp
+    [Pa] and current [A], bilinear on the map packed by :func:`pack_map`
+    (clamped to the grid, odd in dp)."""
     ni = int(aux[0])
     nj = int(aux[1])
     s = 1.0
@@ -55,19 +57,11 @@ def _bracket(grid, o, n, v):
     return lo, (v - grid[o + lo]) / (grid[o + lo + 1] - grid[o + lo])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def active_valve_flow(current, dp, currents, dps, flow):
+def active_valve_flow(current, dp, currents, dps, flow) -> float:
     """Flow [m^3/s] from the third tube to the reserve at pressure drop dp [Pa]
-    and current [A]; flow[i, j] is the map at currents[i], dps[j]."""
-    s = 1.0
-    if dp < 0.0:
-        s = -1.0
-        dp = -dp
-    i, wi = _bracket(currents, 0, currents.shape[0], current)
-    j, wj = _bracket(dps, 0, dps.shape[0], dp)
-    q0 = (1.0 - wj) * flow[i, j] + wj * flow[i, j + 1]
-    q1 = (1.0 - wj) * flow[i + 1, j] + wj * flow[i + 1, j + 1]
-    return s * ((1.0 - wi) * q0 + wi * q1)
+    and current [A]; flow[i, j] is the map at currents[i], dps[j]. The
+    model's own routine (:func:`map_flow`) on the packed map."""
+    return float(map_flow(float(current), float(dp), pack_map(currents, dps, flow)))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
