@@ -169,6 +169,81 @@ def test_bad_input_exits_2_naming_the_file(tmp_path, capsys, control):
     assert np.isfinite(2.0)
 
 
+def test_out_folder_and_seed_are_checked_before_any_work(tmp_path, capsys, control, monkeypatch):
+    """OUT is replaced as a whole: a folder that is not an earlier output, or that holds the working
+    directory, the measured data or the design, is refused (exit 2) and left as it was; so are a
+    file as OUT, a file as its parent, and a negative seed."""
+    base = ["discrepancy", "--design", str(DESIGN), "--measured", str(control), "--out"]
+    keep = tmp_path / "mine"
+    keep.mkdir()
+    (keep / "notes.txt").write_text("mine")
+    code, err = _exit(base + [str(keep)], capsys)
+    assert code == 2 and "not a discrepancy output" in err and (keep / "notes.txt").read_text() == "mine"
+    monkeypatch.chdir(keep)
+    code, err = _exit(base + ["."], capsys)
+    assert code == 2 and "working directory" in err and (keep / "notes.txt").is_file()
+    code, err = _exit(base + [str(control.parent)], capsys)
+    assert code == 2 and "measured folder" in err and control.is_dir()
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert _exit(base + [str(f)], capsys)[0] == 2 and f.read_text() == "x"
+    code, err = _exit(base + [str(f / "sub")], capsys)
+    assert code == 2 and "is a file" in err
+    code, err = _exit(base + [str(tmp_path / "o"), "--seed", "-1"], capsys)
+    assert code == 2 and "--seed -1" in err and not (tmp_path / "o").exists()
+
+
+def test_a_single_record_names_no_effect(tmp_path):
+    """With one record there is nothing to hold out: an in-sample fit always improves with extra
+    parameters, so no effect is named -- not even the active valve's lag, which one mono-sine record
+    shows far beyond noise (without this rule it was `named` on its in-sample gain) -- and the report
+    says the gaps are in-sample."""
+    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    s = hidden_sample(base, effects={"active_valve_lag": True})
+    s["nominal"] = str(ROOT / "conf" / "lab" / "nominal.yaml")
+    (tmp_path / "lag.yaml").write_text(yaml.safe_dump(s))
+    run_lab(tmp_path / "lag.yaml", tmp_path / "m", seed=5, only=[("monosine", "baseline_1.6")], progress=False,
+            workers=1)
+    doc = entry.main(str(DESIGN), str(tmp_path / "m"), str(tmp_path / "out"), profile="ci", seed=0, progress=False,
+                     tests={"monosine": ["baseline_1.6"]}, workers=1)
+    assert doc["verdict"] == "unexplained", doc
+    assert doc["effects"] == []
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "No held-out record" in report and "not named on in-sample fits" in report
+
+
+def test_time_stamp_jitter_and_a_dead_accelerometer(control, tmp_path):
+    """Time stamps within 1e-3 of an interval of the uniform grid are a uniform record (the reader and
+    the excitation agree); beyond, the reader names the file. A flat accelerometer is a dead sensor."""
+    from dampertwin.io import DataError, read_frame
+
+    src = control / "monosine" / "baseline_1.6.parquet"
+    df = pq.read_table(src).to_pandas()
+    t = df["time [s]"].to_numpy(float)
+    dt = t[1] - t[0]
+    for shift, ok in ((5e-4, True), (5e-3, False)):
+        bad = df.copy()
+        bad.loc[100, "time [s]"] = t[100] + shift * dt
+        path = tmp_path / f"jitter_{shift}" / "monosine" / "baseline_1.6.parquet"
+        write_frame(path, bad, read_meta(src))
+        if ok:
+            read_frame(path, "monosine")
+            doc_units = entry.read_units(path.parent.parent, load(DESIGN), ROOT / "conf",
+                                         entry.load_config(ROOT / "conf")["features"],
+                                         entry.load_config(ROOT / "conf")["profiles"]["ci"],
+                                         {"monosine": ["baseline_1.6"]})
+            assert doc_units[0]
+        else:
+            with pytest.raises(DataError, match="non-uniform sampling"):
+                read_frame(path, "monosine")
+    dead = df.copy()
+    dead["rod acceleration [m/s^2]"] = 0.0
+    path = tmp_path / "dead" / "monosine" / "baseline_1.6.parquet"
+    write_frame(path, dead, read_meta(src))
+    with pytest.raises(DataError, match="rod acceleration .* is constant"):
+        read_frame(path, "monosine")
+
+
 def test_low_velocity_curving_runs_filter_noise_and_split():
     """ci curving runs: the run filter keeps the low-velocity runs at the
     listed currents; a run with one steady cycle (the first is a fade-in)

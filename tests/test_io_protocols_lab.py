@@ -23,7 +23,7 @@ CONF = ROOT / "conf"
 def mono(n=10_000, fs=50_000.0, **cols):
     t = np.arange(n) / fs
     df = pd.DataFrame({"time [s]": t, "displacement [m]": 0.005 * np.sin(2 * math.pi * 13 * t),
-                       "force [N]": 100 * np.sin(2 * math.pi * 13 * t), "rod acceleration [m/s^2]": np.zeros(n),
+                       "force [N]": 100 * np.sin(2 * math.pi * 13 * t), "rod acceleration [m/s^2]": -(2 * math.pi * 13) ** 2 * 0.005 * np.sin(2 * math.pi * 13 * t),
                        "current [A]": 1.6})
     for k, v in cols.items():
         df[k] = v

@@ -197,8 +197,13 @@ def _add_discrepancy(sub) -> None:
 
 def _run_discrepancy(args) -> int:
     """Exit 0 for every verdict; bad input raises a UserError (exit 2, file named)."""
+    import signal
+
     from .discrepancy.entry import main as run_discrepancy
 
+    # SIGTERM (a killed job) unwinds like Ctrl-C: the temporary output folder is removed and the record
+    # workers are stopped by the entry's cleanup, instead of being left behind
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     doc = run_discrepancy(args.design, args.measured, args.out, profile=args.profile, seed=args.seed,
                           workers=args.workers)
     print(f"verdict: {doc['verdict']}" + (f" ({', '.join(doc['effects'])})" if doc["effects"] else "")

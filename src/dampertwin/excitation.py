@@ -10,6 +10,15 @@ from dataclasses import dataclass
 import numpy as np
 
 EXCITATION_RATE = 20_000.0  # [Hz] sampling of analytic excitations
+UNIFORM_TOL = 1e-3  # [sampling intervals] largest deviation of a time stamp from the uniform grid still called uniform
+
+
+def grid_deviation(t: np.ndarray) -> float:
+    """Largest deviation of the time stamps t from the uniform grid through
+    their ends, in sampling intervals (0 for an exact grid)."""
+    t = np.asarray(t, float)
+    dt = (t[-1] - t[0]) / (len(t) - 1)
+    return float(np.max(np.abs(t - (t[0] + dt * np.arange(len(t)))))) / dt
 
 
 @dataclass(frozen=True)
@@ -73,8 +82,9 @@ class Excitation:
         if t.ndim != 1 or t.shape != x.shape or len(t) < 4:
             raise ValueError("time and signal must be 1-D, equal length >= 4")
         dt = np.diff(t)
-        if not np.all(dt > 0) or np.ptp(dt) > 1e-6 * dt.mean():
-            raise ValueError("time must be strictly increasing on a uniform grid")
+        if not np.all(dt > 0) or grid_deviation(t) > UNIFORM_TOL:
+            raise ValueError(f"time must be strictly increasing on a uniform grid (time stamps within {UNIFORM_TOL:g} "
+                             "of an interval of it)")
         fs = 1.0 / dt.mean()
         if cutoff is not None and cutoff < 0.45 * fs:
             pad = min(len(x) - 1, int(10 * fs / cutoff))  # odd extension long enough for the edge transient

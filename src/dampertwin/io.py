@@ -40,12 +40,12 @@ REQUIRED = {
 # shortest usable record per protocol [s] (per run where a file holds several)
 MIN_DURATION = {"flowbench": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
                 "topmount": 0.02, "training": 1.0, "verification": 1.0}
-UNIFORM_TOL = 1e-3  # relative spread of the sampling interval still called uniform
+from .excitation import UNIFORM_TOL, grid_deviation  # noqa: E402  (time stamps within UNIFORM_TOL intervals of a grid)
 RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's still accepted
 # channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
-EXCITED = {"flowbench": ("flow", "dp"), **{p: ("displacement", "force") for p in
-                                            ("compliance", "curving", "monosine", "random", "training",
-                                             "verification", "topmount")}}
+EXCITED = {"flowbench": ("flow", "dp"), **{p: ("displacement", "force") for p in ("compliance", "curving", "topmount")},
+           **{p: ("displacement", "force", "rod acceleration") for p in ("monosine", "random", "training",
+                                                                       "verification")}}
 # every unit a column may carry (SI); anything else (bar, mm, kN, l/min, g, degC, ...) is rejected
 SI_COLUMN_UNITS = frozenset(UNITS.values()) | SI_UNITS | {"m/s^2", "N*s", "Pa*s", "W", "J"}
 
@@ -188,11 +188,12 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
             errors.append(f"{label}: column {tcol!r}: fewer than 2 samples")
             continue
         if np.any(dt == 0):
-            errors.append(f"{label}: column {tcol!r}: duplicated time at {t[1:][dt == 0][0]!r} s")
+            errors.append(f"{label}: column {tcol!r}: duplicated time at {float(t[1:][dt == 0][0])!r} s")
         elif np.any(dt < 0):
-            errors.append(f"{label}: column {tcol!r}: time not increasing at {t[1:][dt < 0][0]!r} s")
-        elif np.ptp(dt) > UNIFORM_TOL * np.mean(dt):
-            errors.append(f"{label}: column {tcol!r}: non-uniform sampling (interval {dt.min():.3g} .. {dt.max():.3g} s); "
+            errors.append(f"{label}: column {tcol!r}: time not increasing at {float(t[1:][dt < 0][0])!r} s")
+        elif grid_deviation(t) > UNIFORM_TOL:
+            errors.append(f"{label}: column {tcol!r}: non-uniform sampling (interval {dt.min():.6g} .. {dt.max():.6g} s; "
+                          f"a time stamp {grid_deviation(t):.2g} intervals off the uniform grid, at most {UNIFORM_TOL:g}); "
                           f"a uniform grid is required")
         else:
             want = rate.get(str(run)) if isinstance(rate, dict) else rate
@@ -212,7 +213,7 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
         lo, hi = current_range
         out = cur[(cur < lo - 1e-12) | (cur > hi + 1e-12)]
         if len(out):
-            errors.append(f"{where}: column {qty['current']!r}: current {out[0]!r} A outside the active-valve map "
+            errors.append(f"{where}: column {qty['current']!r}: current {float(out[0])!r} A outside the active-valve map "
                           f"[{lo}, {hi}] A")
     if errors:
         raise DataError(errors)

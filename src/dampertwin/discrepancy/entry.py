@@ -11,6 +11,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from ..design import ConfigTextError, DesignError, load, yaml_load_file
 from ..errors import UserError
 from ..io import read_frame, runs
@@ -68,12 +70,18 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
     present = {p.name: sorted(p.glob("*.parquet")) for p in sorted(measured.iterdir()) if p.is_dir()}
     present = {k: v for k, v in present.items() if v}
     usable = {k: v for k, v in present.items() if k in CONFIGURATIONS}
+    notes = [f"{measured / k}: not a test this workflow reads ({', '.join(CONFIGURATIONS)}); ignored"
+             for k in present if k not in CONFIGURATIONS]
+    for p in sorted(measured.iterdir()):
+        other = sorted(f.name for f in p.iterdir() if f.is_file() and f.suffix != ".parquet") if p.is_dir() else []
+        if other:
+            notes.append(f"{p}: {', '.join(other)}: not .parquet; ignored")
     if not usable:
         raise DiscrepancyError(f"{measured}: no test records; expected DIR/<test>/<case>.parquet with <test> one of "
                                f"{', '.join(CONFIGURATIONS)} (found: {', '.join(present) or 'nothing'})")
     want = prof["tests"] if tests is None else tests
     maxd = prof.get("max_duration", {}) or {}
-    units, variants, notes = [], {}, []
+    units, variants = [], {}
     lo, hi = float(design.pq_map.currents[0]), float(design.pq_map.currents[-1])
     for test, files in usable.items():
         sel = want.get(test, [])
@@ -101,16 +109,20 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
                 variants[case] = v
             for name, g in runs(df):
                 if cfg_name == "valve" and str(name) not in proto.get("valves", {}):
-                    raise DiscrepancyError(f"{f}: run {name!r} is not a flow-bench valve of {proto_path} "
-                                           f"(expected one of {', '.join(proto.get('valves', {}))})")
+                    raise DiscrepancyError(f"{f}: " + ("no 'run' column naming the valve" if name is None else
+                                                       f"run {name!r} is not a flow-bench valve")
+                                           + f" of {proto_path} (expected one of {', '.join(proto.get('valves', {}))})")
+                if cfg_name == "valve" and f.stem in proto.get("valves", {}) and str(name) != f.stem:
+                    notes.append(f"{f}: the file is named after valve {f.stem} but its run column says {name}; "
+                                 f"used as {name}")
                 cur = float(g["current [A]"].iloc[0]) if "current [A]" in g else 1.6
                 if cfg_name != "valve" and not F.keep_run(test, cur, g["time [s]"].to_numpy(float),
                                                           g["displacement [m]"].to_numpy(float),
                                                           prof.get("run_filter")):
                     continue
-                u = F.make_unit(test, case, str(name), cfg_name, cur, g, proto.get("sensors", {}), maxd.get(test),
-                                bench=bench, flow_cutoff=flow_cut)
                 try:
+                    u = F.make_unit(test, case, str(name), cfg_name, cur, g, proto.get("sensors", {}), maxd.get(test),
+                                    bench=bench, flow_cutoff=flow_cut)
                     F.prepare(u, fcfg)
                 except ValueError as e:
                     raise DiscrepancyError(f"{f}: {e}") from None
@@ -139,6 +151,9 @@ def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 
     """Run the workflow and write OUT atomically. Returns the verdict document.
     ``workers`` processes simulate the records in parallel (default: the
     machine's cores; 1: in this process, e.g. inside a Dask task)."""
+    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
+        raise DiscrepancyError(f"--seed {seed!r}: expected a non-negative integer")
+    check_out(Path(out), Path(measured), Path(design))
     conf = _conf_dir()
     cfg = load_config(conf)
     if profile not in cfg["profiles"]:
@@ -149,11 +164,41 @@ def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 
     units, variants, notes = read_units(Path(measured), d, conf, cfg["features"], prof, tests)
     problem = Problem(units, cfg["features"], variants, progress=progress)
     problem.executor = record_pool(workers)
+    done = False
     try:
-        return _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
+        doc = _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
+        done = True
+        return doc
     finally:
-        if problem.executor is not None:
-            problem.executor.shutdown(cancel_futures=True)
+        ex = problem.executor
+        if ex is not None:
+            if not done:  # interrupted or failed: do not wait for the simulations under way
+                for proc in list(getattr(ex, "_processes", {}).values()):  # CPython's pool keeps its workers here
+                    proc.terminate()
+            ex.shutdown(wait=done, cancel_futures=True)
+
+
+def check_out(out: Path, measured: Path, design: Path) -> None:
+    """OUT is checked before any work, since it will be replaced as a whole:
+    it must be a folder (or not exist yet, under a folder), must not hold the
+    working directory, the measured folder or the design file, and an
+    existing non-empty OUT must be an earlier discrepancy output (it holds
+    verdict.json): anything else is refused, never deleted."""
+    o = out.resolve()
+    if o.exists() and not o.is_dir():
+        raise DiscrepancyError(f"--out {out}: exists and is not a folder")
+    parent = o.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise DiscrepancyError(f"--out {out}: {parent} is a file, not a folder")
+    for what, p in (("the working directory", Path.cwd()), ("the measured folder", measured), ("the design file", design)):
+        p = p.resolve()
+        if p == o or o in p.parents:
+            raise DiscrepancyError(f"--out {out}: holds {what} ({p}); OUT is replaced as a whole, choose another folder")
+    if o.is_dir() and any(o.iterdir()) and not (o / "verdict.json").is_file():
+        raise DiscrepancyError(f"--out {out}: exists and is not a discrepancy output (no verdict.json); refusing to "
+                               "replace it")
 
 
 def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out) -> dict:
@@ -172,9 +217,13 @@ def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
             (tmp / "resolvability.json").write_text(json.dumps(res["resolvability"], indent=2) + "\n")
         write_report(tmp, d, problem, res, doc, {"design": design, "measured": measured, "profile": profile,
                                                  "seed": int(seed)})
-        if out.exists():
-            shutil.rmtree(out)
+        old = None
+        if out.exists():  # an earlier output (check_out): moved aside, then the new one moved in
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old", dir=out.parent))
+            os.replace(out, old / out.name)
         os.replace(tmp, out)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)

@@ -215,8 +215,11 @@ def write_report(out, design, problem, res, doc, args) -> None:
         *[f"- {n}" for n in res.get("notes", [])],
         f"- simulations run: {problem.n_sims} (record x design)",
         *[f"- failed simulation batch: {x}" for x in dict.fromkeys(problem.failures)][:10],
-        "- Held-out records are other velocities / currents / tests than the fitted ones (alternating); the "
-        "decision uses the held-out gain in chi^2 minus k ln(cycles) and a bootstrap over cycles.",
+        ("- Held-out records are other velocities / currents / tests than the fitted ones (alternating); the "
+         "decision uses the held-out gain in chi^2 minus k ln(cycles) and a bootstrap over cycles."
+         if not res.get("in_sample") else
+         "- **No held-out record** (a single record, or flow-bench records only): every gap above is in-sample "
+         "(the fitted records), and no effect is named on it."),
         f"- The augmented design is `{doc['design']}`.",
     ]
     (out / "report.md").write_text("\n".join(lines) + "\n")

@@ -592,7 +592,8 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     if len(units) > 1:
         assign_folds(units)
     train, held = problem.mask("train"), problem.mask("heldout")
-    if not held.any():
+    in_sample = not held.any()  # one record, or flow-bench records only: nothing to hold out
+    if in_sample:
         held = train
     allm = problem.mask(None)
     M = problem.measured()
@@ -613,7 +614,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     wz0, wkey0 = worst_record(problem, z0, allm, alpha) if alpha > 0 else (0.0, "")
     where = _where(problem, problem.zdiag(S0), dcfg)
     res = {"z0": z0, "S0": S0, "where": where, "log": log, "fits": {}, "candidates": [], "cal": None,
-           "pool": pool, "train": train, "heldout": held}
+           "pool": pool, "train": train, "heldout": held, "in_sample": in_sample}
     log.append(f"design under test: mean squared noise-scaled residual {mz0:.2f} over {int(allm.sum())} features "
                f"({problem.n_eff()} cycles / segments); threshold {dcfg['disagree_mean_z2']}; worst record "
                f"{wkey0}: chi^2 / its {100 * (1 - alpha):g} % quantile (Bonferroni over records) {wz0:.2f}")
@@ -675,6 +676,11 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         return finish("none", [], [], cal.design, cal.S, cal.values)
 
     # 3. Name -------------------------------------------------------------------
+    if in_sample:
+        log.append("no held-out record (a single record, or flow-bench records only): an effect is not named on "
+                   "in-sample fits, where any extra parameter improves the fit; verdict unexplained. Add records of "
+                   "other tests / currents / velocities")
+        return finish("unexplained", [], [], design, S0, {})
     cands = catalogue(design, cfg)
     if not cands:
         log.append("no candidate effect (every library effect is on in the design): verdict unexplained")
