@@ -178,7 +178,7 @@ def test_out_folder_and_seed_are_checked_before_any_work(tmp_path, capsys, contr
     keep.mkdir()
     (keep / "notes.txt").write_text("mine")
     code, err = _exit(base + [str(keep)], capsys)
-    assert code == 2 and "not a discrepancy output" in err and (keep / "notes.txt").read_text() == "mine"
+    assert code == 2 and "does not write" in err and (keep / "notes.txt").read_text() == "mine"
     monkeypatch.chdir(keep)
     code, err = _exit(base + ["."], capsys)
     assert code == 2 and "working directory" in err and (keep / "notes.txt").is_file()
@@ -191,6 +191,15 @@ def test_out_folder_and_seed_are_checked_before_any_work(tmp_path, capsys, contr
     assert code == 2 and "is a file" in err
     code, err = _exit(base + [str(tmp_path / "o"), "--seed", "-1"], capsys)
     assert code == 2 and "--seed -1" in err and not (tmp_path / "o").exists()
+    # an earlier output, as a DVC stage leaves it (its outs removed, its .gitignore and an untracked file kept)
+    prev = tmp_path / "prev"
+    prev.mkdir()
+    (prev / ".gitignore").write_text("/plots\n")
+    (prev / "resolvability.json").write_text("[]")
+    doc = _run(control, prev)
+    assert doc["verdict"] == "none" and (prev / ".gitignore").read_text() == "/plots\n"
+    assert json.loads((prev / "resolvability.json").read_text())
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".prev")] == []  # no temp folder left
 
 
 def test_a_single_record_names_no_effect(tmp_path):

@@ -182,8 +182,8 @@ def check_out(out: Path, measured: Path, design: Path) -> None:
     """OUT is checked before any work, since it will be replaced as a whole:
     it must be a folder (or not exist yet, under a folder), must not hold the
     working directory, the measured folder or the design file, and an
-    existing non-empty OUT must be an earlier discrepancy output (it holds
-    verdict.json): anything else is refused, never deleted."""
+    existing OUT may hold only what the workflow writes
+    (:func:`is_earlier_output`): anything else is refused, never deleted."""
     o = out.resolve()
     if o.exists() and not o.is_dir():
         raise DiscrepancyError(f"--out {out}: exists and is not a folder")
@@ -196,9 +196,21 @@ def check_out(out: Path, measured: Path, design: Path) -> None:
         p = p.resolve()
         if p == o or o in p.parents:
             raise DiscrepancyError(f"--out {out}: holds {what} ({p}); OUT is replaced as a whole, choose another folder")
-    if o.is_dir() and any(o.iterdir()) and not (o / "verdict.json").is_file():
-        raise DiscrepancyError(f"--out {out}: exists and is not a discrepancy output (no verdict.json); refusing to "
-                               "replace it")
+    if o.is_dir() and not is_earlier_output(o):
+        raise DiscrepancyError(f"--out {out}: exists and holds files this workflow does not write; refusing to "
+                               f"replace it (expected only {', '.join(sorted(OUTPUT_NAMES))} and the P/Q map's .csv)")
+
+
+OUTPUT_NAMES = {"verdict.json", "design.yaml", "report.md", "plots", "resolvability.json", ".gitignore"}
+
+
+def is_earlier_output(folder: Path) -> bool:
+    """Empty, or only what this workflow writes (a DVC stage's .gitignore included; the
+    P/Q map's .csv beside a design.yaml or verdict.json)."""
+    names = {p.name for p in folder.iterdir()}
+    ours = names <= OUTPUT_NAMES | {n for n in names if n.endswith(".csv")}
+    csv_ok = not any(n.endswith(".csv") for n in names) or bool(names & {"design.yaml", "verdict.json"})
+    return ours and csv_ok
 
 
 def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out) -> dict:
@@ -223,6 +235,8 @@ def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
             os.replace(out, old / out.name)
         os.replace(tmp, out)
         if old is not None:
+            if (old / out.name / ".gitignore").is_file():  # a DVC stage's: kept
+                os.replace(old / out.name / ".gitignore", out / ".gitignore")
             shutil.rmtree(old, ignore_errors=True)
     finally:
         if tmp.exists():
