@@ -128,8 +128,10 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
                     raise DiscrepancyError(f"{f}: {e}") from None
                 units.append(u)
     if not units:
-        raise DiscrepancyError(f"{measured}: no record of the tests this profile uses "
-                               f"({', '.join(k for k, v in want.items() if v)}); present: {', '.join(present)}")
+        wanted = "; ".join(f"{k}/{'*' if v == 'all' else '{' + ','.join(v) + '}'}.parquet"
+                           for k, v in want.items() if v)
+        raise DiscrepancyError(f"{measured}: no record of the tests this profile uses ({wanted}); present: "
+                               + ", ".join(f"{k}/{{{','.join(f.stem for f in v)}}}" for k, v in present.items()))
     return units, variants, notes
 
 
