@@ -25,7 +25,7 @@ META_KEY = b"dampertwin"
 UNITS = {
     "time": "s", "displacement": "m", "velocity": "m/s", "force": "N", "rod acceleration": "m/s^2",
     "current": "A", "flow": "m^3/s", "dp": "Pa", "velocity setpoint": "m/s", "frequency": "Hz",
-    "amplitude": "m", "lift": "m",
+    "amplitude": "m", "lift": "m", "oil temperature": "K",
 }
 REQUIRED = {
     "flowbench": ("time", "flow", "dp"),
@@ -36,14 +36,17 @@ REQUIRED = {
     "training": ("time", "displacement", "force", "rod acceleration", "current"),
     "verification": ("time", "displacement", "force", "rod acceleration", "current"),
     "topmount": ("time", "displacement", "force"),
+    "thermal": ("time", "displacement", "force", "current", "oil temperature"),
 }
 # shortest usable record per protocol [s] (per run where a file holds several)
 MIN_DURATION = {"flowbench": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
-                "topmount": 0.02, "training": 1.0, "verification": 1.0}
+                "topmount": 0.02, "training": 1.0, "verification": 1.0, "thermal": 2.0}
 from .excitation import UNIFORM_TOL, grid_deviation  # noqa: E402  (time stamps within UNIFORM_TOL intervals of a grid)
+T_OIL_RANGE = (233.15, 423.15)  # [K] an oil temperature a damper test can have (-40 .. 150 degC)
 RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's still accepted
 # channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
-EXCITED = {"flowbench": ("flow", "dp"), **{p: ("displacement", "force") for p in ("compliance", "curving", "topmount")},
+EXCITED = {"flowbench": ("flow", "dp"),
+           **{p: ("displacement", "force") for p in ("compliance", "curving", "topmount", "thermal")},
            **{p: ("displacement", "force", "rod acceleration") for p in ("monosine", "random", "training",
                                                                        "verification")}}
 # every unit a column may carry (SI); anything else (bar, mm, kN, l/min, g, degC, ...) is rejected
@@ -208,6 +211,12 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
             if q in numeric and np.ptp(numeric[q][sel]) == 0:
                 errors.append(f"{label}: column {qty[q]!r} is constant ({float(numeric[q][sel][0])!r}); expected a record "
                               f"of the excited test (sensor disconnected?)")
+    if "oil temperature" in numeric:
+        T = numeric["oil temperature"]
+        bad = T[(T < T_OIL_RANGE[0]) | (T > T_OIL_RANGE[1])]
+        if len(bad):
+            errors.append(f"{where}: column {qty['oil temperature']!r}: {float(bad[0])!r} K outside "
+                          f"{T_OIL_RANGE[0]:g}..{T_OIL_RANGE[1]:g} K (degrees Celsius in a kelvin column?)")
     if current_range is not None and "current" in qty:
         cur = numeric["current"]
         lo, hi = current_range

@@ -70,6 +70,13 @@ TRUTH_RTOL = 1e-8        # the truth's integration tolerance (the fits: 1e-4)
 TRUTH_ATOL = 3e-7
 REST_S = 20.0            # [s] pause between two runs of a test sequence (temperature drift clock)
 APPROACH2_TESTS = ("training", "verification", "monosine16")  # recorded on the baseline when declared
+EXTRA_TESTS = ("thermal",)  # recorded on the baseline when conf/test declares them (issue 11: warm-up runs)
+TEMPERATURE = "oil temperature [K]"
+# the thermocouple on the outer tube when the sample's benches do not describe one: first order with a
+# 1.3 s time constant (the protocols document 1 s), 0.1 K converter step, 0.03 K noise (type-K thermocouple
+# with a cold-junction amplifier: IEC 60584-1 class 1 tolerances are a fixed offset, which the rise ignores)
+THERMOCOUPLE = {"filter": "butter", "order": 1, "corner": 0.12, "gain": 1.0, "offset": 0.0, "resolution": 0.1}
+THERMOCOUPLE_NOISE = 0.03  # [K] one sigma
 
 REQUIRED_KEYS = ("factors", "values", "effects", "benches")
 OPTIONAL_KEYS = ("generator", "seed_offset", "nominal", "description")
@@ -82,7 +89,7 @@ BENCH_KEYS = {
     "scatter": {"actuator_gain"},
 }
 SENSOR_KEYS = {"filter", "order", "corner", "gain", "offset", "resolution"}
-CHANNELS = ("displacement [m]", "force [N]", "rod acceleration [m/s^2]", "flow [m^3/s]", "dp [Pa]")
+CHANNELS = ("displacement [m]", "force [N]", "rod acceleration [m/s^2]", "flow [m^3/s]", "dp [Pa]", "oil temperature [K]")
 TEMPERATURE_DEFAULTS = {"start": 0.0, "start_scatter": 0.0, "drift": 0.0, "scatter": 0.0,
                         "viscosity_per_K": -0.03, "modulus_per_K": -0.005}
 
@@ -269,9 +276,10 @@ def _sensor_specs(benches: dict) -> dict:
 
 
 def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, bench: dict | None = None,
-           oil_dT: float = 0.0, gain_scatter: float = 1.0) -> pd.DataFrame:
+           oil_dT: float = 0.0, gain_scatter: float = 1.0, temperature: bool = False) -> pd.DataFrame:
     """Measure one run on the hidden sample behind ``design`` with the oil
-    ``oil_dT`` [K] warmer than the design's and the actuator gain scattered."""
+    ``oil_dT`` [K] warmer than the design's and the actuator gain scattered;
+    ``temperature``: the oil temperature recorded too (a thermocouple)."""
     b = sample["benches"]
     a = b["actuator"]
     real = actuate(run.excitation, a["gain"] * gain_scatter, a["delay"], a.get("natural_frequency"), a.get("damping"))
@@ -285,7 +293,7 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
     if not r.ok:
         raise LabError(f"lab simulation of {run.test}/{run.name} failed: {r.stats.message}")
     fs = run.rate
-    noise, specs = b["noise"], _sensor_specs(b)
+    noise, specs = {TEMPERATURE: THERMOCOUPLE_NOISE, **b["noise"]}, {TEMPERATURE: THERMOCOUPLE, **_sensor_specs(b)}
 
     def meas(name: str, x: np.ndarray) -> np.ndarray:
         s = specs.get(name, {})
@@ -307,6 +315,8 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
             cols["rod acceleration [m/s^2]"] = meas("rod acceleration [m/s^2]", r["rod acceleration [m/s^2]"])
         if run.configuration in ("damper", "module"):
             cols["current [A]"] = np.full(len(r.time), run.current)
+        if temperature:  # drawn last: the other channels' noise is that of a record without it
+            cols[TEMPERATURE] = meas(TEMPERATURE, r[TEMPERATURE] + oil_dT)
     df = pd.DataFrame(cols)
     df.insert(0, "run", run.name)
     return df
@@ -315,13 +325,14 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
 def plan(conf: Path, protocols: dict | None = None) -> list[tuple[str, str]]:
     """(test, case) of every file the lab writes: the standard tests of
     approach 1 and, when ``conf/test`` declares them, the approach-2 tests
-    (all their currents in one file, case ``baseline``)."""
+    and the warm-up test ``thermal`` (all their currents in one file, case
+    ``baseline``)."""
     variants = load_variants(conf / "variant")
     protocols = load_all(conf / "test") if protocols is None else protocols
     items = [("flowbench", v) for v in VALVE_DESIGNS] + [("compliance", "baseline")]
     items += [("topmount", t) for t in TOP_MOUNTS] + [("curving", "baseline")]
     items += [("monosine", v.case) for v in variants] + [("random", v.case) for v in variants]
-    items += [(t, "baseline") for t in APPROACH2_TESTS if t in protocols]
+    items += [(t, "baseline") for t in APPROACH2_TESTS + EXTRA_TESTS if t in protocols]
     return items
 
 
@@ -358,7 +369,7 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
     elif protocol == "topmount":
         vcase = TOP_MOUNTS[case]
         d = variants[vcase].apply(nominal) if vcase else nominal
-    elif protocol in ("compliance", "curving") or protocol in APPROACH2_TESTS:
+    elif protocol in ("compliance", "curving") or protocol in APPROACH2_TESTS + EXTRA_TESTS:
         d = nominal
     else:
         v: Variant = variants[case]
@@ -371,7 +382,9 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
     temps = _sequence_temperatures(runs, tc, rng) if protocol != "topmount" else [0.0] * len(runs)
     sg = b.get("scatter", {}).get("actuator_gain", 0.0)
     gains = [1.0 + sg * rng.standard_normal() for _ in runs]
-    frames = [record(r, d, sample, rng, bench, oil_dT=dT, gain_scatter=g) for r, dT, g in zip(runs, temps, gains)]
+    thermo = "temperature" in pc.get("sensors", {})
+    frames = [record(r, d, sample, rng, bench, oil_dT=dT, gain_scatter=g, temperature=thermo)
+              for r, dT, g in zip(runs, temps, gains)]
     meta = {"synthetic": True, "generator": LAB_VERSION, "dampertwin": __version__, "seed": s,
             "design_hash": d.hash(), "protocol": protocol, "case": case,
             "sample": Path(sample.get("_path", "sample.yaml")).name, "sample_hash": sample.get("_hash", ""),

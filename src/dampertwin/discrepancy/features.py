@@ -16,6 +16,12 @@ feature estimated from the measurement itself.
 * Random test: band levels [dB] of the force and rod-acceleration PSD per
   Welch segment (segments are the bootstrap units); the measured high-band
   floor (sensor noise) is added to the simulated PSD before comparing.
+* Oil temperature (records with a thermocouple channel, the warm-up test
+  ``thermal``): the rise of the block means over the record's first
+  ``thermal.reference`` seconds, in ``thermal.blocks`` blocks (record-level
+  features, the same in every cycle row); the absolute reading (offset of
+  the thermocouple, the oil temperature on the day) is not compared. The
+  simulated temperature passes the documented first-order thermocouple lag.
 
 Everything here is pure: frames / arrays in, arrays out (no files).
 """
@@ -30,9 +36,11 @@ import numpy as np
 from .. import kpi
 from ..excitation import Excitation
 from ..report import RECORD_CUTOFF
-from ..sensors import sensor_lowpass
+from ..sensors import sensor_lowpass, transducer
 
 FORCE, ACC = "force [N]", "rod acceleration [m/s^2]"
+TEMP = "oil temperature [K]"                          # measured and simulated channel (thermocouple)
+TEMP_FEATURE = "temperature rise"
 DP, FLOW, DISPLACEMENT = "dp [Pa]", "flow [m^3/s]", "displacement [m]"
 SIM_FORCE = {"damper": "rod force [N]", "module": "top mount force [N]"}
 SIM_DP = ("p upstream [Pa]", "p downstream [Pa]")   # valve configuration (flow bench)
@@ -77,6 +85,11 @@ class Unit:
         return 0 if self.per_cycle is None else int(self.per_cycle.shape[0])
 
     @property
+    def thermal(self) -> bool:
+        """Whether the record has an oil temperature channel (compared as its rise)."""
+        return TEMP in self.measured
+
+    @property
     def channels(self) -> list[str]:
         if self.configuration == "valve":
             return [DP]
@@ -112,6 +125,8 @@ def make_unit(test: str, case: str, run: str, configuration: str, current: float
     meas = {"displacement [m]": x, FORCE: frame[FORCE].to_numpy(float)}
     if ACC in frame:
         meas[ACC] = frame[ACC].to_numpy(float)
+    if TEMP in frame:
+        meas[TEMP] = frame[TEMP].to_numpy(float)
     kind = "psd" if test in PSD_TESTS else "sine"
     return Unit(test, case, run, configuration, float(current), t, ex, meas, dict(sensors or {}), kind)
 
@@ -201,6 +216,57 @@ def _sine_labels(u: Unit, n_bins: int) -> list:
         if ch == ACC:
             out += [("acceleration rms", bin_label(k, n_bins, u.drive)) for k in range(n_bins)]
     return out
+
+
+# ------------------------------------------------------------------ temperature
+def _blocks(t: np.ndarray, cfg: dict):
+    """(reference mask, [block masks], block labels) of the thermal features."""
+    th = cfg.get("thermal") or {}
+    ref_s, nb = float(th.get("reference", 1.0)), int(th.get("blocks", 4))
+    t0, t1 = float(t[0]), float(t[-1])
+    if t1 - t0 < 2 * ref_s:
+        raise ValueError(f"record of {t1 - t0:.3g} s too short for the temperature rise (reference {ref_s:g} s)")
+    ref = t < t0 + ref_s
+    edges = np.linspace(t0 + ref_s, t1 + 1e-12, nb + 1)
+    masks = [(t >= a) & (t < b) for a, b in zip(edges[:-1], edges[1:])]
+    labels = [f"{a - t0:.1f}-{b - t0:.1f} s" for a, b in zip(edges[:-1], edges[1:])]
+    return ref, masks, labels
+
+
+def temperature_rise(t: np.ndarray, T: np.ndarray, cfg: dict) -> np.ndarray:
+    """Block means of the temperature [K] minus the mean of the reference window."""
+    ref, masks, _ = _blocks(t, cfg)
+    T0 = float(np.mean(T[ref]))
+    return np.array([float(np.mean(T[m])) - T0 for m in masks])
+
+
+def _temperature_noise(t: np.ndarray, T: np.ndarray, cfg: dict):
+    """Standard error [K] of each rise from the thermocouple's white noise
+    (the scatter of successive differences / sqrt 2: the slow signal cancels),
+    and d(rise)/d(lag) [K/s]: the rise moves by -(slope in the block - slope in
+    the reference window) x a lag other than documented."""
+    ref, masks, _ = _blocks(t, cfg)
+    sw = float(np.std(np.diff(T))) / math.sqrt(2.0)
+    se = np.array([sw * math.sqrt(1.0 / m.sum() + 1.0 / ref.sum()) for m in masks])
+
+    def slope(m):
+        tt = t[m]
+        return float(np.polyfit(tt - tt.mean(), T[m], 1)[0]) if m.sum() > 2 else 0.0
+
+    s0 = slope(ref)
+    return se, np.array([slope(m) - s0 for m in masks])
+
+
+def _temperature_labels(u: Unit, cfg: dict) -> list:
+    return [(TEMP_FEATURE, lab) for lab in _blocks(u.t, cfg)[2]]
+
+
+def _with_temperature(u: Unit, pc: np.ndarray, T: np.ndarray, cfg: dict) -> np.ndarray:
+    """Feature rows with the temperature rise appended (the same in every row)."""
+    if not u.thermal:
+        return pc
+    rise = temperature_rise(u.t, T, cfg)
+    return np.hstack([pc, np.tile(rise, (pc.shape[0], 1))])
 
 
 # ------------------------------------------------------------------ PSD units
@@ -297,6 +363,8 @@ def prepare(u: Unit, cfg: dict) -> Unit:
         if u.per_cycle.shape[0] == 1:
             u._within = _within_cycle_se(u, cmp_, nb, int(cfg.get("within_cycle_blocks", 10)),
                                          int(cfg.get("within_cycle_degree", 2)))
+            if u.thermal:
+                u._within = np.concatenate([u._within, np.zeros(len(_temperature_labels(u, cfg)))])
     else:
         fs, n, m = _segments(u, cfg["psd_segment"])
         if m < 3:
@@ -307,6 +375,10 @@ def prepare(u: Unit, cfg: dict) -> Unit:
         bands = _psd_bands(u, cfg["psd_bands"])
         u.labels = [("force PSD" if ch == FORCE else "acceleration PSD", f"{lo:g}-{hi:g} Hz")
                     for ch in u.channels for lo, hi in bands]
+    if u.thermal:
+        u.per_cycle = _with_temperature(u, u.per_cycle, u.measured[TEMP], cfg)
+        u.labels = u.labels + _temperature_labels(u, cfg)
+        u._tsig, u._tlag = _temperature_noise(u.t, u.measured[TEMP], cfg)
     u.sigma, u.white = noise(u, cfg)
     return u
 
@@ -347,7 +419,16 @@ def noise(u: Unit, cfg: dict, sim_pc: np.ndarray | None = None):
         pooled = np.sqrt(0.5 * sd[m] ** 2 + 0.5 * np.median(sd[m] ** 2))
         scatter = pooled / math.sqrt(n)
         idx = np.flatnonzero(m)
-        if u.kind == "psd":
+        if name == TEMP_FEATURE:
+            # thermocouple: white noise of the block means, an absolute floor (cold-junction drift,
+            # converter step), a sensitivity error (proportional to the rise) and a lag other than
+            # documented (proportional to the change of slope); no offset (the rise is offset-free)
+            b = fl["oil temperature"]
+            sig[m] = np.sqrt(u._tsig ** 2 + float(b["floor"]) ** 2)
+            gain = float(b["gain"]) * mean[m]
+            off = np.zeros(len(idx))
+            C[np.ix_(idx, idx)] += np.outer(*(2 * [float(b["lag"]) * u._tlag]))
+        elif u.kind == "psd":
             sig[m] = np.sqrt(scatter ** 2 + float(fl["psd_db"]) ** 2)
             gain = np.full(len(idx), float(fl["psd_offset_db"]))
             off = np.zeros(len(idx))
@@ -409,7 +490,17 @@ def sim_signals(u: Unit, channels: dict, row: int) -> dict:
     out[FORCE] = sensor_lowpass(f, u.sensors.get("force"), fs)
     if ACC in u.channels:
         out[ACC] = sensor_lowpass(channels[ACC][row][:n], u.sensors.get("acceleration"), fs)
+    if u.thermal:
+        out[TEMP] = thermocouple(channels[TEMP][row][:n], u.sensors.get("temperature"), fs)
     return out
+
+
+def thermocouple(T: np.ndarray, fc: float | None, fs: float) -> np.ndarray:
+    """The documented thermocouple: first-order lag with corner ``fc`` [Hz]
+    (time constant 1 / (2 pi fc)), started at rest on the first sample."""
+    if fc is None:
+        return T
+    return transducer(T, fs, filter="butter", order=1, corner=fc)
 
 
 def sim_features(u: Unit, signals: dict, cfg: dict) -> np.ndarray:
@@ -417,8 +508,10 @@ def sim_features(u: Unit, signals: dict, cfg: dict) -> np.ndarray:
     if any(len(s) < len(u.t) or not np.all(np.isfinite(s)) for s in signals.values()):
         return np.full(u.per_cycle.shape, np.nan)
     if u.kind == "sine":
-        return _sine_matrix(u, _compare(u, signals, cfg), int(cfg["phase_bins"]))
-    return _psd_matrix(u, signals, cfg, simulated=True)
+        pc = _sine_matrix(u, _compare(u, signals, cfg), int(cfg["phase_bins"]))
+    else:
+        pc = _psd_matrix(u, signals, cfg, simulated=True)
+    return _with_temperature(u, pc, signals.get(TEMP), cfg)
 
 
 def _compare(u: Unit, signals: dict, cfg: dict) -> dict:
@@ -437,4 +530,4 @@ def _compare(u: Unit, signals: dict, cfg: dict) -> dict:
 def sim_channels(u: Unit) -> list[str]:
     if u.configuration == "valve":
         return list(SIM_DP)
-    return [SIM_FORCE[u.configuration]] + ([ACC] if ACC in u.channels else [])
+    return [SIM_FORCE[u.configuration]] + ([ACC] if ACC in u.channels else []) + ([TEMP] if u.thermal else [])

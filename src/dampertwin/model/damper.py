@@ -41,7 +41,7 @@ from .fluid import gas_spring_pressure
 from .inputs import hermite
 from .layout import (BB, CFG_DAMPER, CFG_DAMPER_X, CFG_MODULE, CFG_MODULE_X, CFG_TOPMOUNT, CFG_VALVE, EB_DAMPER,
                      EB_MODULE, EX, O, SB, TB, P, S)
-from .oil_thermal import heat, oil_viscosity, thermal_moduli
+from .oil_thermal import heat, oil_temperature, oil_viscosity, thermal_moduli
 from .piston_leakage import leakage
 from .rod import motion, rod_position, stroke
 from .rod_friction import friction
@@ -149,6 +149,7 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     out[O.ST_C] = V_c / K_c * dy[S.P_c]
     out[O.ST_B] = p[P.V_B] / K_b * dy[S.P_b]
     out[O.DVG] = dy[S.V_g]
+    out[O.T_OIL] = oil_temperature(y, oe + EX.T_oil, p) if extended else p[P.TEMP]
 
 
 @njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)

@@ -100,6 +100,7 @@ OUTPUTS = (
     ("flow bypass [m^3/s]", "Q_BP"), ("flow active valve [m^3/s]", "Q_A"),
     ("storage rebound [m^3/s]", "ST_R"), ("storage compression [m^3/s]", "ST_C"),
     ("storage third tube [m^3/s]", "ST_B"), ("gas volume rate [m^3/s]", "DVG"),
+    ("oil temperature [K]", "T_OIL"),
 )
 O = index_enum("O", [n for _, n in OUTPUTS], __name__)
 N_OUT = len(OUTPUTS)

@@ -69,6 +69,14 @@ def thermal_moduli(y, o, p, K_r, K_c, K_b):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def oil_temperature(y, o, p):
+    """Oil temperature [K]: the state y[o] with the effect on, else the design's oil.T."""
+    if p[_L.P.E_THERMAL] > 0.5:
+        return y[o]
+    return p[_L.P.TEMP]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def heat(y, o, p, P_diss, dy):
     """Writes dT/dt at dy[o] for the dissipated power P_diss [W] (0 when off)."""
     if p[_L.P.E_THERMAL] > 0.5:

@@ -59,7 +59,10 @@ _SCHEMA: dict[str, dict[str, Any]] = {
                  "currents": list, "rate": float},
     "verification": {"configuration": ("damper", "module"), "duration": float, "bands": list,
                      "currents": list, "seed_offset": int, "rate": float},
+    "thermal": {"configuration": "damper", "amplitude": float, "frequency": float, "duration": float,
+                "currents": list, "rate": float},
 }
+SENSOR_KEYS = ("force", "acceleration", "temperature")  # documented bandwidths [Hz] a protocol may name
 PROTOCOLS = tuple(_SCHEMA)
 
 
@@ -94,8 +97,11 @@ def validate(doc: Any, where: str) -> dict:
         elif kind is dict and not isinstance(v, dict):
             errors.append(f"{where}: {name}.{key} must be a mapping")
     sensors = doc.get("sensors", {})
-    if not isinstance(sensors, dict) or any(k not in ("force", "acceleration") or not _pos(v) for k, v in sensors.items()):
-        errors.append(f"{where}: {name}.sensors must map force / acceleration to a bandwidth in Hz, got {sensors!r}")
+    if not isinstance(sensors, dict) or any(k not in SENSOR_KEYS or not _pos(v) for k, v in sensors.items()):
+        errors.append(f"{where}: {name}.sensors must map {' / '.join(SENSOR_KEYS)} to a bandwidth in Hz, "
+                      f"got {sensors!r}")
+    if name == "thermal" and not (isinstance(sensors, dict) and "temperature" in sensors):
+        errors.append(f"{where}: thermal.sensors.temperature missing (the thermocouple's documented bandwidth in Hz)")
     for k in doc:
         if k not in ("protocol", "sensors") and k not in _SCHEMA[name]:
             errors.append(f"{where}: {name}.{k}: unknown key; expected {', '.join(_SCHEMA[name])}")
@@ -195,6 +201,13 @@ def _training(c, seed):
                 {"segments": len(segments)}) for I in c["currents"]]
 
 
+def _thermal(c, seed):
+    """Warm-up runs: one long sine per current (the oil heats by the dissipated power)."""
+    A, f, T = c["amplitude"], c["frequency"], c["duration"]
+    return [Run("thermal", f"I{I:g}", "damper", Excitation.sine(A, f, T), float(I), c["rate"], None,
+                {"amplitude [m]": A, "frequency [Hz]": f, "duration [s]": T}) for I in c["currents"]]
+
+
 def _topmount(c, seed):
     st = c["static"]
     runs = [Run("topmount", "static", "topmount", triangle_wave(st["amplitude"], st["period"], st["cycles"]), 0.0,
@@ -217,6 +230,7 @@ def _topmount(c, seed):
 _BUILDERS: dict[str, Callable] = {
     "flowbench": _flowbench, "compliance": _compliance, "topmount": _topmount, "curving": _curving,
     "monosine": _monosine, "random": _random, "training": _training, "verification": _verification,
+    "thermal": _thermal,
 }
 
 
