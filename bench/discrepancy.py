@@ -51,6 +51,12 @@ DEV_KEYS = ["piston_rebound.a", "piston_rebound.F_preload", "piston_intake.a", "
 
 def cases(args, design, cfg, rng):
     cands = catalogue(design, cfg)
+    if args.effects:  # a targeted check: single and pair cases of these effects only
+        want = args.effects.split(",")
+        unknown = sorted(set(want) - {c.name for c in cands})
+        if unknown:
+            raise SystemExit(f"--effects: unknown {', '.join(unknown)}; expected some of {', '.join(c.name for c in cands)}")
+        cands = [c for c in cands if c.name in want]
     out = []
     keys = DEV_KEYS
     if args.dev_keys == "pool":  # every calibration parameter (the oil temperature is the lab's bench condition)
@@ -135,6 +141,9 @@ def main(argv=None) -> int:
     ap.add_argument("--per-effect", type=int, default=3)
     ap.add_argument("--pairs", type=int, default=5)
     ap.add_argument("--artefacts", type=int, default=5)
+    ap.add_argument("--effects", default=None,
+                    help="comma-separated library effects the single / pair cases draw from (default all; a "
+                         "targeted check, not the acceptance matrix)")
     ap.add_argument("--seed", type=int, default=0, help="seeds every draw (magnitudes, deviations, lab noise)")
     ap.add_argument("--scale", type=float, default=1.0, help="hidden magnitude / typical magnitude")
     ap.add_argument("--dev", type=float, default=0.05, help="one-sigma log deviation of control parameters")

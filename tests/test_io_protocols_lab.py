@@ -137,7 +137,7 @@ def test_atomic_write_leaves_no_partial_file(tmp_path, monkeypatch):
 def test_all_shipped_protocols_validate_and_build():
     P = load_all(CONF / "test")
     assert set(P) == {"flowbench", "compliance", "topmount", "curving", "monosine", "random", "training",
-                      "verification", "monosine16"}
+                      "verification", "monosine16", "thermal"}
     runs = {k: build_runs(v, seed=5) for k, v in P.items()}
     fb = {r.bench_valve: r for r in runs["flowbench"]}
     assert fb["piston_rebound"].excitation.value.max() == pytest.approx(80 / 60000)
@@ -150,6 +150,25 @@ def test_all_shipped_protocols_validate_and_build():
     assert not any(r.name.startswith("sweep_A0.001_f") and float(r.name.split("_f")[1]) > 20 for r in runs["topmount"])
     tr = runs["training"][0].excitation
     assert tr.value.max() == pytest.approx(0.025, rel=1e-2)
+    th = runs["thermal"]
+    assert {r.current for r in th} == {1.6, 0.32} and all(r.configuration == "damper" for r in th)
+    assert th[0].excitation.t_end - th[0].excitation.t0 == pytest.approx(10.0)
+
+
+def test_oil_temperature_column_is_checked(tmp_path):
+    """The warm-up test needs the thermocouple channel in kelvin; a Celsius reading under a kelvin label
+    (20-30) is refused naming the column."""
+    t = np.arange(5000) / 1000.0
+    df = pd.DataFrame({"time [s]": t, "displacement [m]": 0.01 * np.sin(2 * math.pi * 8 * t),
+                       "force [N]": 800 * np.cos(2 * math.pi * 8 * t), "current [A]": 1.6,
+                       "oil temperature [K]": 303.15 + 0.2 * t})
+    assert len(read_frame(write_frame(tmp_path / "ok.parquet", df, {}), "thermal")[0]) == 5000
+    rejected(_bad(tmp_path, df.drop(columns=["oil temperature [K]"])), "thermal", "missing column 'oil temperature [K]'")
+    rejected(_bad(tmp_path, df.assign(**{"oil temperature [K]": 30.0 + 0.2 * t})), "thermal",
+             "'oil temperature [K]'", "degrees Celsius")
+    with pytest.raises(ProtocolError, match="thermal.sensors.temperature missing"):
+        doc = load_protocol(CONF / "test" / "thermal.yaml")
+        validate({**doc, "sensors": {"force": 1000.0}}, "thermal.yaml")
 
 
 def test_random_signals_are_seeded():

@@ -206,3 +206,27 @@ def test_check_sample_accepts_the_shipped_samples():
         s = load_sample(CONF / "lab" / name)
         check_sample(s, nominal)
         assert Path(s["_path"]).name == name
+
+
+def test_warm_up_test_records_the_oil_temperature(tmp_path):
+    """The thermal test's records carry a thermocouple channel (the protocol declares one): flat within
+    noise and the converter step on a part that does not heat, rising by the dissipated heat / C_th with
+    oil_thermal hidden (~2-3 K over 10 s at 1.6 A with 1200 J/K); records of tests without a temperature
+    sensor have no such column."""
+    base = {k: v for k, v in load_sample(SAMPLE).items() if not k.startswith("_")}
+    rise = {}
+    for name, eff in (("cold", False), ("hot", True)):
+        s = {**base, "effects": {**base["effects"], "oil_thermal": eff}, "nominal": str(NOMINAL)}
+        p = tmp_path / f"{name}.yaml"
+        p.write_text(yaml.safe_dump(s))
+        run_lab(p, tmp_path / name, seed=4, only=[("thermal", "baseline"), ("compliance", "baseline")],
+                progress=False, workers=1)
+        df, _ = read_frame(tmp_path / name / "thermal" / "baseline.parquet", "thermal")
+        g = df[df["run"] == "I1.6"]
+        t, T = g["time [s]"].to_numpy(), g["oil temperature [K]"].to_numpy()
+        rise[name] = T[t > t[-1] - 1.0].mean() - T[t < t[0] + 1.0].mean()
+        assert np.all(np.abs(T / 0.1 - np.round(T / 0.1)) < 1e-6)  # the converter's 0.1 K step
+        comp, _ = read_frame(tmp_path / name / "compliance" / "baseline.parquet", "compliance")
+        assert "oil temperature [K]" not in comp
+    assert abs(rise["cold"]) < 0.05, rise
+    assert 1.5 < rise["hot"] < 4.0, rise
