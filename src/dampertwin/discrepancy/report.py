@@ -60,7 +60,7 @@ def heatmaps(problem, z_before, z_after, out) -> list:
         ma = [(u, c) for u, c in _unit_map(problem, z_after) if kind_of(u) == kind]
         if not mb:
             continue
-        cols = list(mb[0][1])
+        cols = list(dict.fromkeys(k for _, c in mb for k in c))  # every record's bins (thermal: + time blocks)
         A = np.array([[c.get(k, np.nan) for k in cols] for _, c in mb])
         B = np.array([[c.get(k, np.nan) for k in cols] for _, c in ma])
         vmax = max(3.0, float(np.nanmax(A)))
@@ -108,7 +108,26 @@ def overlays(problem, signals, out) -> list:
         fig.savefig(p, dpi=100)
         plt.close(fig)
         paths.append(p)
+        if u.thermal and F.TEMP in sb and F.TEMP in sa:
+            paths.append(_temperature_overlay(u, sb[F.TEMP], sa[F.TEMP], out))
     return paths
+
+
+def _temperature_overlay(u, before, after, out):
+    """Oil temperature rise over the record (each curve minus its mean over the reference window):
+    thermocouple, design under test, final design."""
+    ref = u.t < u.t[0] + 1.0
+    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+    for y, style, col, lab in ((u.measured[F.TEMP], "-", "tab:purple", "measured (thermocouple)"),
+                               (before, "--", "0.4", "before"), (after, "-", "tab:green", "after")):
+        ax.plot(u.t - u.t[0], y - np.mean(y[ref]), style, color=col, lw=1, label=lab)
+    ax.set(xlabel="time [s]", ylabel="oil temperature rise [K]", title=f"{u.key}: oil temperature")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    p = out / f"temperature_{u.test}_{u.case}_{u.run}.png".replace("/", "_")
+    fig.savefig(p, dpi=100)
+    plt.close(fig)
+    return p
 
 
 def _frame(u, sig: dict) -> pd.DataFrame:
