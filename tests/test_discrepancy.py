@@ -130,17 +130,16 @@ def test_hidden_leakage_is_named(leak, tmp_path):
 
 def test_oil_heating_is_named_on_warm_up_records(tmp_path):
     """oil_thermal moves the force of seconds-long records by < 1 N, so only the warm-up test's
-    thermocouple shows it. A hidden heat capacity of 700 J/K (typical 1200): the temperature rise
-    names the effect and the fitted C_th comes back near the truth; the nominal part on the same
-    bench: `none`."""
+    thermocouple shows it. Hidden at its typical magnitude, the temperature rise names the effect
+    and the augmented design follows the measured rise; the nominal part on the same bench: `none`."""
     thermal, tests = [("thermal", "baseline")], {"thermal": ["baseline"]}
-    hot = _lab(tmp_path, "hot", 21, only=thermal, effects={"oil_thermal": True}, values={"oil_thermal.C_th": 700.0})
+    hot = _lab(tmp_path, "hot", 21, only=thermal, effects={"oil_thermal": True})
     cold = _lab(tmp_path, "cold", 22, only=thermal)
     doc = entry.main(str(DESIGN), str(hot), str(tmp_path / "o_hot"), profile="ci", seed=0, progress=False,
                      tests=tests, workers=1)
     assert doc["verdict"] == "named" and doc["effects"] == ["oil_thermal"], doc
     cand = next(c for c in doc["candidates"] if c["effect"] == "oil_thermal")
-    assert 550.0 < cand["parameters"]["oil_thermal.C_th"] < 900.0, cand
+    assert cand["heldout_gap_before"] > 5.0 and cand["heldout_gap_after"] < 1.0, cand  # 1 = noise
     assert doc["gap"]["closed_fraction"] >= 0.8
     assert any("temperature rise" in w["phase_or_band"] for w in doc["where"]), doc["where"]
     d = load(tmp_path / "o_hot" / "design.yaml", map_dirs=[ROOT / "conf" / "design"])
