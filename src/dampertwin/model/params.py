@@ -171,9 +171,12 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
     EffectRecord("valve_friction_current", "current-dependent Coulomb friction of the active valve's spool",
                  "Manring 2005, 4.6; thesis 7.4", False,
                  f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E),
-    EffectRecord("oil_thermal", "oil temperature state: viscosity and bulk modulus follow the heating",
+    EffectRecord("oil_thermal", "oil temperature state: viscosity and bulk modulus follow the heating; "
+                 "output `oil temperature [K]` (the warm-up test's thermocouple)",
                  "Lion & Loose 2002; Seeton 2006; Totten 2000", False,
-                 f"compression peak force in the last cycle ({_M13}, heating time-compressed x1000)", "lower", _E),
+                 "oil temperature and compression peak force in the last cycle (damper, warm-up excitation 8 Hz "
+                 "+-10 mm for 10 s, C_th 400 J/K; energy balance C_th dT + hA int(T - T_amb) dt = int F s' dt)",
+                 "> 5 K warmer; peak lower by < 1 N", _E),
     EffectRecord("rod_friction_asymmetric", "rod seal friction higher in rebound than in compression",
                  "Olsson et al., EJC 4 (1998), 3.6", False,
                  f"friction force in rebound / compression ({_M13})", "rebound larger, compression smaller", _E),
