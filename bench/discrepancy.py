@@ -152,7 +152,8 @@ def main(argv=None) -> int:
                          "pool = every calibration_pool parameter but the oil temperature")
     ap.add_argument("--tests", default="flowbench:piston_rebound,flowbench:piston_intake,flowbench:base_compression,"
                                         "flowbench:base_intake,compliance:baseline,monosine:baseline_1.6,"
-                                        "monosine:baseline_0.32,random:baseline_1.6,curving:baseline,thermal:baseline",
+                                        "monosine:baseline_0.32,random:baseline_1.6,curving:baseline,thermal:baseline,"
+                                        "friction:baseline",
                     help="lab records generated per case (the ci profile's tests)")
     ap.add_argument("--lab-workers", type=int, default=None,
                     help="processes generating one case's lab records and simulating its records in the workflow "

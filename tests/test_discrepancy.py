@@ -150,6 +150,27 @@ def test_oil_heating_is_named_on_warm_up_records(tmp_path):
     assert doc["verdict"] == "none", doc
 
 
+def test_pressure_loaded_seal_is_named_on_friction_records(tmp_path):
+    """On the standard tests a seal that rubs harder with the chamber pressure is a ~2 % force gain plus a
+    Coulomb step (the calibration absorbs it). The friction test strokes the damper slowly at two gas
+    precharges: hidden at its typical magnitude, the seal is named from those records, and the fit finds
+    its magnitude; the nominal part on the same bench: `none`."""
+    fr, tests = [("friction", "baseline")], {"friction": ["baseline"]}
+    seal = _lab(tmp_path, "seal", 31, only=fr, effects={"seal_friction_pressure": True},
+                values={"seal_friction_pressure.k_p": 1.0e-5})
+    plain = _lab(tmp_path, "plain", 32, only=fr)
+    doc = entry.main(str(DESIGN), str(seal), str(tmp_path / "o_seal"), profile="ci", seed=0, progress=False,
+                     tests=tests, workers=1)
+    assert doc["verdict"] == "named" and doc["effects"] == ["seal_friction_pressure"], doc
+    cand = next(c for c in doc["candidates"] if c["effect"] == "seal_friction_pressure")
+    assert 0.5e-5 < cand["parameters"]["seal_friction_pressure.k_p"] < 2.0e-5, cand
+    assert cand["heldout_gap_after"] < cand["heldout_gap_before"], cand
+    assert load(tmp_path / "o_seal" / "design.yaml", map_dirs=[ROOT / "conf" / "design"]).effects["seal_friction_pressure"]
+    doc = entry.main(str(DESIGN), str(plain), str(tmp_path / "o_plain"), profile="ci", seed=0, progress=False,
+                     tests=tests, workers=1)
+    assert doc["verdict"] == "none", doc
+
+
 def test_out_of_library_artefact_is_unexplained(control, tmp_path):
     """Load-cell crosstalk from the stroke channel: no library effect has this signature."""
     art = tmp_path / "artefact"

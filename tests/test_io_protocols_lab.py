@@ -137,7 +137,7 @@ def test_atomic_write_leaves_no_partial_file(tmp_path, monkeypatch):
 def test_all_shipped_protocols_validate_and_build():
     P = load_all(CONF / "test")
     assert set(P) == {"flowbench", "compliance", "topmount", "curving", "monosine", "random", "training",
-                      "verification", "monosine16", "thermal"}
+                      "verification", "monosine16", "thermal", "friction"}
     runs = {k: build_runs(v, seed=5) for k, v in P.items()}
     fb = {r.bench_valve: r for r in runs["flowbench"]}
     assert fb["piston_rebound"].excitation.value.max() == pytest.approx(80 / 60000)
@@ -153,6 +153,10 @@ def test_all_shipped_protocols_validate_and_build():
     th = runs["thermal"]
     assert {r.current for r in th} == {1.6, 0.32} and all(r.configuration == "damper" for r in th)
     assert th[0].excitation.t_end - th[0].excitation.t0 == pytest.approx(10.0)
+    fr = runs["friction"]
+    assert [(r.current, r.meta["precharge [Pa]"]) for r in fr] == [(0.32, 401325.0), (0.32, 1.4e6), (1.6, 401325.0),
+                                                                   (1.6, 1.4e6)]
+    assert all(r.configuration == "damper" and r.excitation.value.max() == pytest.approx(0.005, rel=1e-3) for r in fr)
 
 
 def test_oil_temperature_column_is_checked(tmp_path):
@@ -169,6 +173,19 @@ def test_oil_temperature_column_is_checked(tmp_path):
     with pytest.raises(ProtocolError, match="thermal.sensors.temperature missing"):
         doc = load_protocol(CONF / "test" / "thermal.yaml")
         validate({**doc, "sensors": {"force": 1000.0}}, "thermal.yaml")
+
+
+def test_precharge_column_is_checked(tmp_path):
+    """The friction test needs each run's absolute gas precharge in pascal; a reading in bar (4, 14) is
+    refused naming the column."""
+    t = np.arange(2000) / 1000.0
+    df = pd.DataFrame({"time [s]": t, "displacement [m]": 0.005 * np.sin(2 * math.pi * 1.6 * t),
+                       "force [N]": 80 * np.cos(2 * math.pi * 1.6 * t) - 100, "current [A]": 0.32,
+                       "precharge [Pa]": 401325.0})
+    assert len(read_frame(write_frame(tmp_path / "ok.parquet", df, {}), "friction")[0]) == 2000
+    rejected(_bad(tmp_path, df.drop(columns=["precharge [Pa]"])), "friction", "missing column 'precharge [Pa]'")
+    rejected(_bad(tmp_path, df.assign(**{"precharge [Pa]": 4.01325})), "friction", "'precharge [Pa]'",
+             "bar in a pascal column")
 
 
 def test_random_signals_are_seeded():

@@ -230,3 +230,37 @@ def test_warm_up_test_records_the_oil_temperature(tmp_path):
         assert "oil temperature [K]" not in comp
     assert abs(rise["cold"]) < 0.05, rise
     assert 1.5 < rise["hot"] < 4.0, rise
+
+
+def test_friction_test_refills_the_gas_to_each_precharge(tmp_path):
+    """The friction test's runs record their precharge and are measured on the part with oil.P_0 set to it:
+    the gas force on the rod, (P_0 - P_atm) x rod area, shifts the mean force by ~ -(14 - 4) bar x rod area
+    between the runs; the seal term (seal_friction_pressure, hidden) widens the hysteresis (twice the friction)
+    at 14 bar by ~2 x 1 N per bar more than at 4 bar, with no change of the mean."""
+    base = {k: v for k, v in load_sample(SAMPLE).items() if not k.startswith("_")}
+    nominal = load(NOMINAL)
+    A_r = math.pi / 4 * nominal["geometry.D_R"] ** 2   # rod cross-section [m^2]
+    width, mean = {}, {}
+    for name, eff in (("plain", False), ("seal", True)):
+        s = {**base, "effects": {**base["effects"], "seal_friction_pressure": eff},
+             "values": {**base.get("values", {}), "seal_friction_pressure.k_p": 1e-5}, "nominal": str(NOMINAL)}
+        p = tmp_path / f"{name}.yaml"
+        p.write_text(yaml.safe_dump(s))
+        run_lab(p, tmp_path / name, seed=4, only=[("friction", "baseline")], progress=False, workers=1)
+        df, _ = read_frame(tmp_path / name / "friction" / "baseline.parquet", "friction")
+        for run, g in df.groupby("run", sort=False):
+            P = g["precharge [Pa]"].to_numpy()
+            assert np.all(P == P[0]) and run.startswith(f"P{P[0] / 1e5:.3g}bar_I")
+            if not run.endswith("_I0.32"):
+                continue
+            t, x, F = (g[c].to_numpy() for c in ("time [s]", "displacement [m]", "force [N]"))
+            v = np.gradient(x, t)
+            steady = t > t[0] + (t[-1] - t[0]) / 3   # after the first of three cycles
+            mid = steady & (np.abs(x) < 0.5 * np.abs(x).max())   # mid-stroke, both directions
+            width[name, P[0]] = F[mid & (v > 0)].mean() - F[mid & (v < 0)].mean()
+            mean[name, P[0]] = F[steady].mean()
+    lo, hi = 401325.0, 1.4e6
+    shift = mean["plain", hi] - mean["plain", lo]
+    assert shift == pytest.approx(-(hi - lo) * A_r, rel=0.15), (shift, A_r)   # the precharge reached the part
+    grow = (width["seal", hi] - width["seal", lo]) - (width["plain", hi] - width["plain", lo])
+    assert 2 * 0.6 * 1e-5 * (hi - lo) < grow < 2 * 1.4 * 1e-5 * (hi - lo), width

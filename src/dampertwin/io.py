@@ -26,6 +26,7 @@ UNITS = {
     "time": "s", "displacement": "m", "velocity": "m/s", "force": "N", "rod acceleration": "m/s^2",
     "current": "A", "flow": "m^3/s", "dp": "Pa", "velocity setpoint": "m/s", "frequency": "Hz",
     "amplitude": "m", "lift": "m", "oil temperature": "K",
+    "precharge": "Pa",
 }
 REQUIRED = {
     "flowbench": ("time", "flow", "dp"),
@@ -37,16 +38,20 @@ REQUIRED = {
     "verification": ("time", "displacement", "force", "rod acceleration", "current"),
     "topmount": ("time", "displacement", "force"),
     "thermal": ("time", "displacement", "force", "current", "oil temperature"),
+    "friction": ("time", "displacement", "force", "current", "precharge"),
 }
 # shortest usable record per protocol [s] (per run where a file holds several)
 MIN_DURATION = {"flowbench": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
-                "topmount": 0.02, "training": 1.0, "verification": 1.0, "thermal": 2.0}
+                "topmount": 0.02, "training": 1.0, "verification": 1.0, "thermal": 2.0,
+                "friction": 0.5}
 from .excitation import UNIFORM_TOL, grid_deviation  # noqa: E402  (time stamps within UNIFORM_TOL intervals of a grid)
 T_OIL_RANGE = (233.15, 423.15)  # [K] an oil temperature a damper test can have (-40 .. 150 degC)
+PRECHARGE_RANGE = (1.5e5, 5.0e6)  # [Pa] absolute gas precharge of a damper (0.5 .. 49 bar gauge)
 RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's still accepted
 # channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
 EXCITED = {"flowbench": ("flow", "dp"),
-           **{p: ("displacement", "force") for p in ("compliance", "curving", "topmount", "thermal")},
+           **{p: ("displacement", "force") for p in ("compliance", "curving", "topmount", "thermal",
+                                                           "friction")},
            **{p: ("displacement", "force", "rod acceleration") for p in ("monosine", "random", "training",
                                                                        "verification")}}
 # every unit a column may carry (SI); anything else (bar, mm, kN, l/min, g, degC, ...) is rejected
@@ -217,6 +222,13 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
         if len(bad):
             errors.append(f"{where}: column {qty['oil temperature']!r}: {float(bad[0])!r} K outside "
                           f"{T_OIL_RANGE[0]:g}..{T_OIL_RANGE[1]:g} K (degrees Celsius in a kelvin column?)")
+    if "precharge" in numeric:
+        P = numeric["precharge"]
+        bad = P[(P < PRECHARGE_RANGE[0]) | (P > PRECHARGE_RANGE[1])]
+        if len(bad):
+            errors.append(f"{where}: column {qty['precharge']!r}: {float(bad[0])!r} Pa outside "
+                          f"{PRECHARGE_RANGE[0]:g}..{PRECHARGE_RANGE[1]:g} Pa absolute (bar in a pascal column? "
+                          f"gauge instead of absolute?)")
     if current_range is not None and "current" in qty:
         cur = numeric["current"]
         lo, hi = current_range

@@ -70,7 +70,7 @@ TRUTH_RTOL = 1e-8        # the truth's integration tolerance (the fits: 1e-4)
 TRUTH_ATOL = 3e-7
 REST_S = 20.0            # [s] pause between two runs of a test sequence (temperature drift clock)
 APPROACH2_TESTS = ("training", "verification", "monosine16")  # recorded on the baseline when declared
-EXTRA_TESTS = ("thermal",)  # recorded on the baseline when conf/test declares them (issue 11: warm-up runs)
+EXTRA_TESTS = ("thermal", "friction")  # recorded on the baseline when conf/test declares them (issue 11)
 TEMPERATURE = "oil temperature [K]"
 # the thermocouple on the outer tube when the sample's benches do not describe one: first order with a
 # 1.3 s time constant (the protocols document 1 s), 0.1 K converter step, 0.03 K noise (type-K thermocouple
@@ -284,6 +284,9 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
     a = b["actuator"]
     real = actuate(run.excitation, a["gain"] * gain_scatter, a["delay"], a.get("natural_frequency"), a.get("damping"))
     part = sample_design(design, sample)
+    precharge = run.meta.get("precharge [Pa]")
+    if precharge is not None:  # the friction test refills the reserve gas to the run's precharge
+        part = part.with_overrides({"oil.P_0": float(precharge)})
     if oil_dT:
         tc = {**TEMPERATURE_DEFAULTS, **b.get("temperature", {})}
         part = part.with_overrides({"oil.nu": part["oil.nu"] * math.exp(tc["viscosity_per_K"] * oil_dT),
@@ -315,6 +318,8 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
             cols["rod acceleration [m/s^2]"] = meas("rod acceleration [m/s^2]", r["rod acceleration [m/s^2]"])
         if run.configuration in ("damper", "module"):
             cols["current [A]"] = np.full(len(r.time), run.current)
+        if precharge is not None:
+            cols["precharge [Pa]"] = np.full(len(r.time), float(precharge))
         if temperature:  # drawn last: the other channels' noise is that of a record without it
             cols[TEMPERATURE] = meas(TEMPERATURE, r[TEMPERATURE] + oil_dT)
     df = pd.DataFrame(cols)
@@ -325,8 +330,8 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
 def plan(conf: Path, protocols: dict | None = None) -> list[tuple[str, str]]:
     """(test, case) of every file the lab writes: the standard tests of
     approach 1 and, when ``conf/test`` declares them, the approach-2 tests
-    and the warm-up test ``thermal`` (all their currents in one file, case
-    ``baseline``)."""
+    the warm-up test ``thermal`` and the friction test ``friction`` (all their
+    runs in one file, case ``baseline``)."""
     variants = load_variants(conf / "variant")
     protocols = load_all(conf / "test") if protocols is None else protocols
     items = [("flowbench", v) for v in VALVE_DESIGNS] + [("compliance", "baseline")]

@@ -22,7 +22,8 @@ from . import features as F
 from .workflow import Problem, record_pool, run, verdict_document
 
 CONFIGURATIONS = {"flowbench": "valve", "compliance": "damper", "curving": "damper", "monosine": "module", "random": "module",
-                  "training": None, "verification": None, "thermal": "damper"}
+                  "training": None, "verification": None, "thermal": "damper",
+                  "friction": "damper"}
 PROFILES = ("ci", "full")
 
 

@@ -16,6 +16,10 @@ feature estimated from the measurement itself.
 * Random test: band levels [dB] of the force and rod-acceleration PSD per
   Welch segment (segments are the bootstrap units); the measured high-band
   floor (sensor noise) is added to the simulated PSD before comparing.
+* Friction test (slow sines at two gas precharges): sine features like the
+  other damper tests; each run is simulated with the precharge it records
+  (``Unit.overrides``: oil.P_0), so a friction that grows with the chamber
+  pressure shows as a hysteresis that differs between the runs.
 * Oil temperature (records with a thermocouple channel, the warm-up test
   ``thermal``): the rise of the block means over the record's first
   ``thermal.reference`` seconds, in ``thermal.blocks`` blocks (record-level
@@ -41,10 +45,11 @@ from ..sensors import sensor_lowpass, transducer
 FORCE, ACC = "force [N]", "rod acceleration [m/s^2]"
 TEMP = "oil temperature [K]"                          # measured and simulated channel (thermocouple)
 TEMP_FEATURE = "temperature rise"
+PRECHARGE = "precharge [Pa]"                          # friction test: the run's gas precharge (a design value)
 DP, FLOW, DISPLACEMENT = "dp [Pa]", "flow [m^3/s]", "displacement [m]"
 SIM_FORCE = {"damper": "rod force [N]", "module": "top mount force [N]"}
 SIM_DP = ("p upstream [Pa]", "p downstream [Pa]")   # valve configuration (flow bench)
-SINE_TESTS = ("compliance", "curving", "monosine", "training", "flowbench")
+SINE_TESTS = ("compliance", "curving", "monosine", "training", "flowbench", "friction")
 NAMES = {FORCE: "force", DP: "dp"}                   # feature name of a channel's bin mean
 PSD_TESTS = ("random", "verification")
 
@@ -75,6 +80,7 @@ class Unit:
     _within: np.ndarray | None = None               # within-cycle standard error (single steady cycle)
     drive: str = DISPLACEMENT                       # recorded input channel (the phase reference)
     sim_kw: dict = field(default_factory=dict)      # extra simulate_batch arguments (flow bench: valve, bench)
+    overrides: dict = field(default_factory=dict)   # design values the record sets (friction test: oil.P_0)
 
     @property
     def key(self) -> str:
@@ -128,7 +134,11 @@ def make_unit(test: str, case: str, run: str, configuration: str, current: float
     if TEMP in frame:
         meas[TEMP] = frame[TEMP].to_numpy(float)
     kind = "psd" if test in PSD_TESTS else "sine"
-    return Unit(test, case, run, configuration, float(current), t, ex, meas, dict(sensors or {}), kind)
+    over = {}
+    if PRECHARGE in frame:  # the friction test's gas precharge of this run [Pa abs]
+        over["oil.P_0"] = float(frame[PRECHARGE].iloc[0])
+    return Unit(test, case, run, configuration, float(current), t, ex, meas, dict(sensors or {}), kind,
+                overrides=over)
 
 
 # ------------------------------------------------------------------ sine units

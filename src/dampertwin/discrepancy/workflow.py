@@ -237,13 +237,17 @@ def simulate_unit(u, fcfg: dict, var, designs: list, keep: bool = False):
     """One record for a population of designs (also a worker task: no I/O).
     Returns (feature rows per design, NaN for failed members; simulated
     signals per design when ``keep``; simulations run; failure messages)."""
+    def record_design(d):  # the case's variant, then what the record itself sets (friction test: precharge)
+        d = var.apply(d) if var is not None else d
+        return d.with_overrides(u.overrides) if u.overrides else d
+
     ds, bad = [], []
     for d in designs:
         try:
-            ds.append(var.apply(d) if var is not None else d)
+            ds.append(record_design(d))
             bad.append(False)
         except (DesignError, ValueError):
-            ds.append(designs[0] if var is None else var.apply(designs[0]))
+            ds.append(record_design(designs[0]))
             bad.append(True)
     fs = 1.0 / float(np.mean(np.diff(u.t)))
     # one batch per pattern of effect switches (effects with states must be alike in a batch)
@@ -886,8 +890,13 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     for n, st in stats.items():
         log.append(f"{n}: held-out chi2 gain {st['gain']:.1f} after a penalty of {st['penalty']:.1f} "
                    f"({st['k']} parameter(s) x ln {n_eff} cycles; the effect's own held-out chi2 drop at the fitted calibration values "
-                   f"{st['own']:.1f}), closes {100 * min(st['closed'], 1.0):.0f} % of the "
-                   f"held-out gap left by the {'calibration refit' if ref is cal else 'design under test'}, wins {100 * st['share']:.0f} % of {B} cycle bootstraps"
+                   f"{st['own']:.1f}), "
+                   + (f"closes {100 * min(st['closed'], 1.0):.0f} % of the held-out gap left by the "
+                      f"{'calibration refit' if ref is cal else 'design under test'}" if chi_cal_h > nh else
+                      f"{'lowers' if st['closed'] > 0 else 'raises'} the held-out chi2 (the "
+                      f"{'calibration refit' if ref is cal else 'design under test'} left it at noise level: "
+                      f"{chi_cal_h:.0f} for {nh} features; a record's gate disagreed)")
+                   + f", wins {100 * st['share']:.0f} % of {B} cycle bootstraps"
                    + (f"; the partner gains {st['nested_gain']:.1f} after its penalty {st['nested_penalty']:.1f} over the "
                       "lead refitted with the re-selected calibration parameters" if "nested_gain" in st else ""))
     viable = [n for n in names if stats[n]["gain"] > 0 and stats[n]["closed"] >= float(dcfg["min_closed"])]

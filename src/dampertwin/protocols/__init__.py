@@ -61,6 +61,8 @@ _SCHEMA: dict[str, dict[str, Any]] = {
                      "currents": list, "seed_offset": int, "rate": float},
     "thermal": {"configuration": "damper", "amplitude": float, "frequency": float, "duration": float,
                 "currents": list, "rate": float},
+    "friction": {"configuration": "damper", "amplitude": float, "velocity": float, "currents": list,
+                 "precharges": list, "cycles": int, "rate": float},
 }
 SENSOR_KEYS = ("force", "acceleration", "temperature")  # documented bandwidths [Hz] a protocol may name
 PROTOCOLS = tuple(_SCHEMA)
@@ -208,6 +210,17 @@ def _thermal(c, seed):
                 {"amplitude [m]": A, "frequency [Hz]": f, "duration [s]": T}) for I in c["currents"]]
 
 
+def _friction(c, seed):
+    """Slow sines per current at each gas precharge [Pa abs] (the reserve gas refilled between
+    runs): the run's design has oil.P_0 = its precharge (``meta["precharge [Pa]"]``)."""
+    A, v = c["amplitude"], c["velocity"]
+    f = v / (2 * math.pi * A)
+    return [Run("friction", f"P{P / 1e5:.3g}bar_I{I:g}", "damper", Excitation.sine(A, f, c["cycles"] / f), float(I),
+                c["rate"], None, {"precharge [Pa]": float(P), "velocity [m/s]": float(v), "amplitude [m]": A,
+                                  "frequency [Hz]": f, "cycles": c["cycles"]})
+            for I in c["currents"] for P in c["precharges"]]
+
+
 def _topmount(c, seed):
     st = c["static"]
     runs = [Run("topmount", "static", "topmount", triangle_wave(st["amplitude"], st["period"], st["cycles"]), 0.0,
@@ -230,7 +243,7 @@ def _topmount(c, seed):
 _BUILDERS: dict[str, Callable] = {
     "flowbench": _flowbench, "compliance": _compliance, "topmount": _topmount, "curving": _curving,
     "monosine": _monosine, "random": _random, "training": _training, "verification": _verification,
-    "thermal": _thermal,
+    "thermal": _thermal, "friction": _friction,
 }
 
 
