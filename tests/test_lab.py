@@ -174,6 +174,8 @@ def _write_sample(tmp_path, edit):
     (lambda d: d["values"].update({"oil.chi": "lots"}), "values.oil.chi"),
     (lambda d: d["benches"]["sensors"]["force [N]"].update(filter="kalman"), "benches.sensors.force [N].filter"),
     (lambda d: d["benches"].update(wind={"speed": 3.0}), "benches.wind"),
+    (lambda d: d["benches"].update(precharge={"scatter": -0.01}), "benches.precharge"),
+    (lambda d: d["benches"].update(precharge={"gauge": 1.0}), "benches.precharge.gauge"),
     (lambda d: d.pop("benches"), "benches"),
 ])
 def test_bad_sample_exits_2_naming_file_and_key(tmp_path, capsys, edit, key):

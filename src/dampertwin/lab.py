@@ -77,6 +77,10 @@ TEMPERATURE = "oil temperature [K]"
 # with a cold-junction amplifier: IEC 60584-1 class 1 tolerances are a fixed offset, which the rise ignores)
 THERMOCOUPLE = {"filter": "butter", "order": 1, "corner": 0.12, "gain": 1.0, "offset": 0.0, "resolution": 0.1}
 THERMOCOUPLE_NOISE = 0.03  # [K] one sigma
+# the friction test's gas fill when the sample's benches do not describe it: the rig fills the reserve gas to
+# the set precharge (the recorded value) through a 0-25 bar gauge of 0.25 % FS class: the real precharge is
+# +5 kPa off (zero error) and scatters by 0.3 % from fill to fill
+PRECHARGE_FILL = {"offset": 5000.0, "scatter": 0.003}
 
 REQUIRED_KEYS = ("factors", "values", "effects", "benches")
 OPTIONAL_KEYS = ("generator", "seed_offset", "nominal", "description")
@@ -87,6 +91,7 @@ BENCH_KEYS = {
     "sensors": None,         # channel -> {filter, order, corner, gain, offset, resolution}
     "temperature": {"start", "start_scatter", "drift", "scatter", "viscosity_per_K", "modulus_per_K"},
     "scatter": {"actuator_gain"},
+    "precharge": {"offset", "scatter"},  # friction test: the gas fill's error (real = set + offset, x (1 + scatter N))
 }
 SENSOR_KEYS = {"filter", "order", "corner", "gain", "offset", "resolution"}
 CHANNELS = ("displacement [m]", "force [N]", "rod acceleration [m/s^2]", "flow [m^3/s]", "dp [Pa]", "oil temperature [K]")
@@ -207,6 +212,9 @@ def _check_benches(b: dict) -> list[str]:
     t = b.get("temperature", {})
     if any(t.get(q, 0.0) < 0 for q in ("start_scatter", "scatter")):
         bad.append("benches.temperature: start_scatter and scatter are one-sigma values >= 0")
+    pf = b.get("precharge", {})
+    if not all(_finite(v) for v in pf.values()) or pf.get("scatter", 0.0) < 0:
+        bad.append("benches.precharge: offset [Pa] finite, scatter a one-sigma relative value >= 0")
     if b.get("scatter", {}).get("actuator_gain", 0.0) < 0:
         bad.append("benches.scatter.actuator_gain: one-sigma relative value >= 0")
     return bad
@@ -279,14 +287,18 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
            oil_dT: float = 0.0, gain_scatter: float = 1.0, temperature: bool = False) -> pd.DataFrame:
     """Measure one run on the hidden sample behind ``design`` with the oil
     ``oil_dT`` [K] warmer than the design's and the actuator gain scattered;
-    ``temperature``: the oil temperature recorded too (a thermocouple)."""
+    ``temperature``: the oil temperature recorded too (a thermocouple). A run
+    with ``meta["precharge [Pa]"]`` (friction test) is measured with the reserve
+    gas filled to it (with the fill's error, PRECHARGE_FILL) and records it."""
     b = sample["benches"]
     a = b["actuator"]
     real = actuate(run.excitation, a["gain"] * gain_scatter, a["delay"], a.get("natural_frequency"), a.get("damping"))
     part = sample_design(design, sample)
     precharge = run.meta.get("precharge [Pa]")
-    if precharge is not None:  # the friction test refills the reserve gas to the run's precharge
-        part = part.with_overrides({"oil.P_0": float(precharge)})
+    if precharge is not None:  # the friction test refills the reserve gas to the run's precharge (recorded)
+        pf = {**PRECHARGE_FILL, **b.get("precharge", {})}
+        p_real = (float(precharge) + pf["offset"]) * (1.0 + pf["scatter"] * rng.standard_normal())
+        part = part.with_overrides({"oil.P_0": p_real})
     if oil_dT:
         tc = {**TEMPERATURE_DEFAULTS, **b.get("temperature", {})}
         part = part.with_overrides({"oil.nu": part["oil.nu"] * math.exp(tc["viscosity_per_K"] * oil_dT),
