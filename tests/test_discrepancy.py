@@ -171,6 +171,22 @@ def test_pressure_loaded_seal_is_named_on_friction_records(tmp_path):
     assert doc["verdict"] == "none", doc
 
 
+def test_a_varying_precharge_column_is_refused():
+    """The friction test's precharge column is the run's gas fill (one value): a varying trace (a chamber
+    pressure logged under that name) is refused naming the column, never read as its first sample."""
+    import pandas as pd
+    from dampertwin.discrepancy import features as F
+
+    t = np.arange(2000) / 1000.0
+    df = pd.DataFrame({"time [s]": t, "displacement [m]": 0.005 * np.sin(2 * np.pi * 1.6 * t),
+                       "force [N]": 80 * np.cos(2 * np.pi * 1.6 * t), "precharge [Pa]": 1.4e6})
+    u = F.make_unit("friction", "baseline", "P14bar_I0.32", "damper", 0.32, df, {"force": 1000.0})
+    assert u.overrides == {"oil.P_0": 1.4e6}
+    df["precharge [Pa]"] = 1.4e6 + 2e5 * np.sin(2 * np.pi * 1.6 * t)
+    with pytest.raises(ValueError, match="'precharge \\[Pa\\]' varies"):
+        F.make_unit("friction", "baseline", "P14bar_I0.32", "damper", 0.32, df, {"force": 1000.0})
+
+
 def test_out_of_library_artefact_is_unexplained(control, tmp_path):
     """Load-cell crosstalk from the stroke channel: no library effect has this signature."""
     art = tmp_path / "artefact"

@@ -135,8 +135,12 @@ def make_unit(test: str, case: str, run: str, configuration: str, current: float
         meas[TEMP] = frame[TEMP].to_numpy(float)
     kind = "psd" if test in PSD_TESTS else "sine"
     over = {}
-    if PRECHARGE in frame:  # the friction test's gas precharge of this run [Pa abs]
-        over["oil.P_0"] = float(frame[PRECHARGE].iloc[0])
+    if PRECHARGE in frame:  # the friction test's gas precharge of this run [Pa abs]: the fill, one value
+        P = frame[PRECHARGE].to_numpy(float)
+        if np.ptp(P) > 1e-3 * abs(float(P[0])):
+            raise ValueError(f"run {run}: column {PRECHARGE!r} varies ({P.min():.6g}..{P.max():.6g} Pa); expected "
+                             f"the run's gas fill pressure, one value per run (a chamber pressure trace?)")
+        over["oil.P_0"] = float(P[0])
     return Unit(test, case, run, configuration, float(current), t, ex, meas, dict(sensors or {}), kind,
                 overrides=over)
 
