@@ -740,7 +740,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         return chi(problem.z(fits[n].S), train)
 
     n_pairs = int(prof["candidates"].get("pairs", 0))
-    pairs = []
+    partners: list = []
     lead = min(top, key=lambda c: train_chi(c.name) + len(c.params) * math.log(n_tr)) if top else None
     if n_pairs > 0 and lead is not None:
         # forward selection stops when the lead fit leaves no disagreement by the same gates as `none`
@@ -780,7 +780,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         share2.sort(key=lambda x: -x[0])
         log.append(f"partner signatures on the lead fit ({lead.name}): "
                    + (", ".join(f"{c.name} {e:.2f}" for e, c in share2) or "none explains its residual"))
-        pairs = [(lead, c) for _, c in share2[:n_pairs]]
+        partners = [c for _, c in share2[:n_pairs]]
 
     # the nested reference of every pair: the lead refitted together with the calibration parameters
     # re-selected on what the lead fit leaves (the first selection was made on the residual of the
@@ -788,7 +788,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     # gains on held-out data over this reference: a small miscalibration the first selection missed
     # (e.g. a shim stack's friction) is the calibration pool's to absorb, not a second effect's.
     recal = None
-    if pairs:
+    if partners:
         lf = fits[lead.name]
         z_l = problem.z(lf.S)
         order_l = select_params(Jc[train], z_l[train], int(prof["calibration"]["max_params"]))
@@ -804,10 +804,24 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         # design's values as in the lead fit): no new simulation for it
         recal = gauss_newton(problem, design, lead.overrides(), rec_params, train, its, step,
                              f"refit {lead.name} + recalibration", S0=lf.S, J0=J0r, prior=prior_l)
+        z_r = problem.z(recal.S)
+        wz_r, wk_r = worst_record(problem, z_r, allm, alpha) if alpha > 0 else (0.0, "")
         log.append(f"nested reference of the pairs: {lead.name} refitted with "
-                   + ", ".join(p.key for p in sel_l) + " (re-selected on the lead fit's residual)")
+                   + ", ".join(p.key for p in sel_l) + " (re-selected on the lead fit's residual): mean z^2 "
+                   f"held-out {mean_z2(z_r, held):.2f}, all {mean_z2(z_r, allm):.2f}; worst record {wk_r} {wz_r:.2f}")
 
-    for lead, b in pairs:
+    # partners are tried down their ranking until one is eligible (at most `pairs`): the partner test's
+    # alpha is shared among the partners that may be tried (Bonferroni), so trying more does not make a
+    # chance partner likelier to pass
+    from scipy.stats import chi2 as chi2_dist
+
+    partner_alpha = float(dcfg.get("partner_alpha", 0.01)) / max(len(partners), 1)
+    pair_test: dict[str, dict] = {}
+
+    def pen_of(c):
+        return max(len(c.params), len(c.effects)) * math.log(n_tr)
+
+    for b in partners:
         pc = Candidate(f"{lead.name}+{b.name}", lead.effects + b.effects, lead.params + b.params,
                        {**lead.typical, **b.typical})
         # the partner joins the nested reference (its values, its Jacobian) at its typical magnitude,
@@ -818,13 +832,32 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         fits[pc.name] = gauss_newton(problem, design, pc.overrides(), start + cs, train, its, step,
                                      f"refit {pc.name}", J0=dict(recal.J), prior=prior_l)
         top.append(pc)
+        # (a) nested: the partner's own parameters must earn their penalty over the lead + recalibration,
+        # and their held-out chi^2 drop must be significant as a likelihood-ratio test of nested models
+        # (chi^2 with k_b degrees of freedom at the partner alpha): with few cycles (a record of
+        # single-cycle runs) k ln(cycles) alone is weaker than the chance drop of k_b free parameters.
+        # (b) the pair must describe the held-out data better, after its penalty, than each of its
+        # effects refitted alone (absolute held-out chi^2 + penalty: the lead's fit and the pair's
+        # refit start from different calibrations, so their gains over their own baselines do not compare)
+        k_b = max(len(b.params), 1)
+        pen_b = max(k_b * math.log(n_tr), float(chi2_dist.ppf(1.0 - partner_alpha, k_b)))
+        ch_pair = chi(problem.z(fits[pc.name].S), held)
+        nested = chi(problem.z(recal.S), held) - ch_pair - pen_b
+        alone = {m: chi(problem.z(fits[m].S), held) + pen_of(next(c for c in top if c.name == m))
+                 for m in (lead.name, b.name) if m in fits}
+        pair_test[pc.name] = {"nested_gain": nested, "nested_penalty": pen_b, "abs": ch_pair + pen_of(pc),
+                              "alone_abs": alone}
+        ok = nested > 0 and ch_pair + pen_of(pc) < min(alone.values())
+        log.append(f"pair {pc.name}: the partner gains {nested:.1f} in held-out chi2 after its penalty {pen_b:.1f} "
+                   f"over {lead.name} refitted with the re-selected calibration parameters; held-out chi2 + penalty "
+                   f"{ch_pair + pen_of(pc):.1f} (alone: " + ", ".join(f"{m} {v:.1f}" for m, v in alone.items()) + ")"
+                   + ("" if ok else ": not eligible"))
+        if ok:
+            break
     res["fits"] = fits
 
     # 4. Decide on held-out data -----------------------------------------------------
-    from scipy.stats import chi2 as chi2_dist
-
     n_eff = max(problem.n_eff("train"), 2)
-    partner_alpha = float(dcfg.get("partner_alpha", 0.01))
     # reference: the better of the design under test and its calibration refit on held-out data
     ref = cal if chi(z_cal, held) <= chi(z0, held) else Fit("design under test", [], {}, design, S0, {})
     chi_cal_h = chi(problem.z(ref.S), held)
@@ -846,31 +879,22 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         ch_ = chi(zf, held)
         chi_off = chi(problem.z(off_of[c.name]), held)
         closed = (chi_cal_h - ch_) / max(chi_cal_h - nh, 1e-9)
-        stats[c.name] = {"gain": min(chi_cal_h, chi_off) - ch_ - pen, "closed": closed, "penalty": pen, "k": k,
+        stats[c.name] = {"gain": min(chi_cal_h, chi_off) - ch_ - pen, "abs_score": ch_ + pen, "closed": closed,
+                         "penalty": pen, "k": k,
                          "cand": c, "own": chi_off - ch_}
-    # a pair is eligible when one of its effects gains on held-out data alone and the pair gains more
-    # than that effect alone (the partner earns its extra penalty given the lead: no free rider)
+    # a pair is eligible when one of its effects gains on held-out data alone, its partner passes the
+    # nested test and the pair beats each of its effects alone (absolute held-out chi^2 + penalty)
     for n in list(stats):
         if "+" in n:
+            stats[n].update(pair_test[n])
             alone = [stats.get(m, {}).get("gain", -math.inf) for m in n.split("+")]
-            if not (max(alone) > 0 and stats[n]["gain"] > max(alone)):
+            if not max(alone) > 0:
                 stats[n]["eligible"] = False
-                log.append(f"{n}: not eligible (no effect of the pair gains alone on held-out data, or the pair "
-                           "gains less than its better effect alone)")
-                continue
-            # nested: the partner's own parameters must earn their penalty over the lead + recalibration,
-            # and their held-out chi^2 drop must be significant as a likelihood-ratio test of nested
-            # models (chi^2 with k_b degrees of freedom at partner_alpha): with few cycles (a record of
-            # single-cycle runs) k ln(cycles) alone is weaker than the chance drop of k_b free parameters
-            k_b = max(len(stats[n]["cand"].params) - len(lead.params), 1)
-            pen_b = max(k_b * math.log(n_eff), float(chi2_dist.ppf(1.0 - partner_alpha, k_b)))
-            nested = chi(problem.z(recal.S), held) - chi(problem.z(fits[n].S), held) - pen_b
-            stats[n]["nested_gain"] = nested
-            stats[n]["nested_penalty"] = pen_b
-            if not nested > 0:
+                log.append(f"{n}: not eligible (no effect of the pair gains alone on held-out data)")
+            elif not (pair_test[n]["nested_gain"] > 0 and pair_test[n]["abs"] < min(pair_test[n]["alone_abs"].values())):
                 stats[n]["eligible"] = False
-                log.append(f"{n}: not eligible (the partner gains {nested:.1f} in held-out chi2 after its penalty "
-                           f"{pen_b:.1f} over {lead.name} refitted with the re-selected calibration parameters)")
+                log.append(f"{n}: not eligible (the partner does not earn its penalty over the lead refitted with the "
+                           "re-selected calibration parameters, or the pair does not beat one of its effects alone)")
     rng = np.random.default_rng(seed)
     B = int(prof["bootstrap"])
     names = [n for n in stats if stats[n].get("eligible", True)]
@@ -878,12 +902,11 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     for _ in range(B):
         boot = [rng.integers(0, u.n_cycles, u.n_cycles) for u in units]
         cb = chi(problem.z(ref.S, boot), held)
-        g = {n: min(cb, chi(problem.z(off_of[n], boot), held)) - chi(problem.z(fits[n].S, boot), held)
-             - stats[n]["penalty"] for n in names}
-        if g:
-            bn = max(g, key=g.get)
-            if g[bn] > 0:
-                wins[bn] += 1
+        fit_b = {n: chi(problem.z(fits[n].S, boot), held) for n in names}
+        g = {n: min(cb, chi(problem.z(off_of[n], boot), held)) - fit_b[n] - stats[n]["penalty"] for n in names}
+        bn = _pick(g, {n: fit_b[n] + stats[n]["penalty"] for n in names})
+        if bn is not None:
+            wins[bn] += 1
     for n in stats:
         stats[n]["share"] = wins.get(n, 0) / max(B, 1)
     res["stats"] = stats
@@ -920,7 +943,8 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         log.append(f"no candidate closes >= {100 * float(dcfg['min_closed']):.0f} % of the held-out gap with a "
                    "positive penalised gain: verdict unexplained")
         return finish("unexplained", [], [], design, S0, {})
-    best = max(viable, key=lambda n: stats[n]["gain"])
+    best = _pick({n: stats[n]["gain"] for n in viable},
+                 {n: stats[n]["abs_score"] for n in viable})
     order_v = sorted(viable, key=lambda n: -stats[n]["gain"])
     group = [n for n in order_v if stats[n]["share"] >= float(dcfg["group_share"]) or n == best]
     f = fits[best]
@@ -938,6 +962,19 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         return finish("ambiguous", list(effs), flat, f.design, f.S, f.values)
     log.append(f"{best} is not stable over the cycle bootstrap ({100 * stats[best]['share']:.0f} %): verdict unexplained")
     return finish("unexplained", [], [], design, S0, {})
+
+
+def _pick(gain: dict, score: dict):
+    """The winner among candidates with a positive held-out gain: the single
+    effect with the largest gain over its own calibration (``gain``), replaced
+    by a pair when a pair's absolute held-out chi^2 + penalty (``score``) is
+    lower than that single's: the pair then describes the held-out data better
+    than the best one-effect model, its partner having passed the nested test
+    (eligibility). None when no candidate gains."""
+    singles = [n for n in gain if "+" not in n and gain[n] > 0]
+    best = max(singles, key=gain.get) if singles else None
+    pairs = [n for n in gain if "+" in n and gain[n] > 0 and (best is None or score[n] < score[best])]
+    return min(pairs, key=score.get) if pairs else best
 
 
 def verdict_document(res: dict) -> dict:
