@@ -848,6 +848,26 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         pair_test[pc.name] = {"nested_gain": nested, "nested_penalty": pen_b, "abs": ch_pair + pen_of(pc),
                               "alone_abs": alone}
         ok = nested > 0 and ch_pair + pen_of(pc) < min(alone.values())
+        if ok and dcfg.get("partner_resolvable", True) and alpha > 0:
+            # (c) the partner at its fitted magnitude must leave a disagreement the records resolve: its
+            # signature (the pair fit with the partner switched off, minus the pair fit), less what the
+            # calibration pool absorbs, past the record gate (as `resolvability`). A partner fitted at a
+            # small fraction of its typical magnitude that still passes (a) and (b) is absorbing model
+            # error spread over many records (the lab's own friction law on the shipped sample), not
+            # resolving an effect
+            off_b = problem.simulate([fits[pc.name].design.with_overrides(
+                {f"effects.{e}": False for e in b.effects})], f"{pc.name}: partner off")[0]
+            sig = problem.z(off_b) - problem.z(fits[pc.name].S)
+            nJ = Jc.shape[1]
+            if nJ and np.all(np.isfinite(sig)):
+                A = np.vstack([Jc, np.eye(nJ) / ps])
+                sig = sig - Jc @ np.linalg.lstsq(A, np.concatenate([sig, np.zeros(nJ)]), rcond=None)[0]
+            ratio, rec = worst_record(problem, sig, allm, alpha) if np.all(np.isfinite(sig)) else (0.0, "")
+            pair_test[pc.name]["partner_ratio"] = ratio
+            ok = ratio >= 1.0
+            log.append(f"pair {pc.name}: the partner's signature at its fitted values, beyond the calibration pool, "
+                       f"in its most affected record {rec}: {ratio:.2f} x the record gate"
+                       + ("" if ok else ": not resolvable on these records, not eligible"))
         log.append(f"pair {pc.name}: the partner gains {nested:.1f} in held-out chi2 after its penalty {pen_b:.1f} "
                    f"over {lead.name} refitted with the re-selected calibration parameters; held-out chi2 + penalty "
                    f"{ch_pair + pen_of(pc):.1f} (alone: " + ", ".join(f"{m} {v:.1f}" for m, v in alone.items()) + ")"
@@ -891,10 +911,12 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
             if not max(alone) > 0:
                 stats[n]["eligible"] = False
                 log.append(f"{n}: not eligible (no effect of the pair gains alone on held-out data)")
-            elif not (pair_test[n]["nested_gain"] > 0 and pair_test[n]["abs"] < min(pair_test[n]["alone_abs"].values())):
+            elif not (pair_test[n]["nested_gain"] > 0 and pair_test[n]["abs"] < min(pair_test[n]["alone_abs"].values())
+                      and pair_test[n].get("partner_ratio", 1.0) >= 1.0):
                 stats[n]["eligible"] = False
                 log.append(f"{n}: not eligible (the partner does not earn its penalty over the lead refitted with the "
-                           "re-selected calibration parameters, or the pair does not beat one of its effects alone)")
+                           "re-selected calibration parameters, the pair does not beat one of its effects alone, or "
+                           "the partner's fitted signature is below the record gate)")
     rng = np.random.default_rng(seed)
     B = int(prof["bootstrap"])
     names = [n for n in stats if stats[n].get("eligible", True)]
