@@ -585,3 +585,20 @@ def test_a_null_effect_is_not_credited_with_the_calibrations_further_refit(tmp_p
     log = (tmp_path / "out" / "report.md").read_text()
     own = re.search(r"- oil_thermal: held-out chi2 gain (\S+) .*?fitted calibration values (\S+)\)", log)
     assert own and abs(float(own.group(2))) < 1.0, own  # heating adds nothing to these records
+
+
+def test_a_pair_replaces_the_best_single_only_when_it_describes_the_heldout_data_better():
+    """`_pick`: the best single is the one with the largest gain over its own
+    calibration; an (eligible) pair replaces it only when the pair's absolute
+    held-out chi^2 + penalty is lower; nothing with a positive gain -> None.
+    The gains of a single and of a pair start from different calibrations and
+    are never compared with each other."""
+    from dampertwin.discrepancy.workflow import _pick
+
+    gain = {"a": 2231.0, "b": 880.0, "b+a": 1405.0}     # the pair's gain is over a better-calibrated baseline
+    score = {"a": 760.0, "b": 277.0, "b+a": 129.0}      # ... but it fits the held-out data best
+    assert _pick(gain, score) == "b+a"
+    assert _pick(gain, {**score, "b+a": 800.0}) == "a"  # a pair worse than the best single is not named
+    assert _pick({**gain, "b+a": -1.0}, score) == "a"   # nor one that gains nothing over its own calibration
+    assert _pick({"a": -1.0, "b": 0.0}, {"a": 1.0, "b": 1.0}) is None
+    assert _pick({"a": 5.0, "b": 9.0}, {"a": 1.0, "b": 50.0}) == "b"   # singles: by their gain, as before

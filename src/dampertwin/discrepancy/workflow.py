@@ -787,7 +787,7 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     # design under test, where the lead's own signature dominated). A partner is named only when it
     # gains on held-out data over this reference: a small miscalibration the first selection missed
     # (e.g. a shim stack's friction) is the calibration pool's to absorb, not a second effect's.
-    recal = None
+    recal, nested_label = None, ""
     if partners:
         lf = fits[lead.name]
         z_l = problem.z(lf.S)
@@ -804,11 +804,21 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         # design's values as in the lead fit): no new simulation for it
         recal = gauss_newton(problem, design, lead.overrides(), rec_params, train, its, step,
                              f"refit {lead.name} + recalibration", S0=lf.S, J0=J0r, prior=prior_l)
+        nested_label = f"{lead.name} refitted with the re-selected calibration parameters"
         z_r = problem.z(recal.S)
         wz_r, wk_r = worst_record(problem, z_r, allm, alpha) if alpha > 0 else (0.0, "")
         log.append(f"nested reference of the pairs: {lead.name} refitted with "
                    + ", ".join(p.key for p in sel_l) + " (re-selected on the lead fit's residual): mean z^2 "
                    f"held-out {mean_z2(z_r, held):.2f}, all {mean_z2(z_r, allm):.2f}; worst record {wk_r} {wz_r:.2f}")
+        if chi(z_r, held) > chi(problem.z(lf.S), held):
+            # the further calibration traded held-out agreement for training agreement (parameters that
+            # compensate each other on the fitted records): the lead fit itself is the better one-effect
+            # description, and the pairs start from it and must beat it
+            log.append(f"the recalibrated {lead.name} describes the held-out data worse (mean z^2 "
+                       f"{mean_z2(z_r, held):.2f}) than the {lead.name} fit ({mean_z2(problem.z(lf.S), held):.2f}): "
+                       "the pairs start from, and are tested against, the lead fit")
+            recal, prior_l = lf, prior
+            nested_label = f"the {lead.name} fit"
 
     # partners are tried down their ranking until one is eligible (at most `pairs`): the partner test's
     # alpha is shared among the partners that may be tried (Bonferroni), so trying more does not make a
@@ -848,6 +858,10 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
         pair_test[pc.name] = {"nested_gain": nested, "nested_penalty": pen_b, "abs": ch_pair + pen_of(pc),
                               "alone_abs": alone}
         ok = nested > 0 and ch_pair + pen_of(pc) < min(alone.values())
+        log.append(f"pair {pc.name}: the partner gains {nested:.1f} in held-out chi2 after its penalty {pen_b:.1f} "
+                   f"over {nested_label}; held-out chi2 + penalty "
+                   f"{ch_pair + pen_of(pc):.1f} (alone: " + ", ".join(f"{m} {v:.1f}" for m, v in alone.items()) + ")"
+                   + ("" if ok else ": not eligible"))
         if ok and dcfg.get("partner_resolvable", True) and alpha > 0:
             # (c) the partner at its fitted magnitude must leave a disagreement the records resolve: its
             # signature (the pair fit with the partner switched off, minus the pair fit), less what the
@@ -868,10 +882,6 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
             log.append(f"pair {pc.name}: the partner's signature at its fitted values, beyond the calibration pool, "
                        f"in its most affected record {rec}: {ratio:.2f} x the record gate"
                        + ("" if ok else ": not resolvable on these records, not eligible"))
-        log.append(f"pair {pc.name}: the partner gains {nested:.1f} in held-out chi2 after its penalty {pen_b:.1f} "
-                   f"over {lead.name} refitted with the re-selected calibration parameters; held-out chi2 + penalty "
-                   f"{ch_pair + pen_of(pc):.1f} (alone: " + ", ".join(f"{m} {v:.1f}" for m, v in alone.items()) + ")"
-                   + ("" if ok else ": not eligible"))
         if ok:
             break
     res["fits"] = fits
@@ -914,9 +924,9 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
             elif not (pair_test[n]["nested_gain"] > 0 and pair_test[n]["abs"] < min(pair_test[n]["alone_abs"].values())
                       and pair_test[n].get("partner_ratio", 1.0) >= 1.0):
                 stats[n]["eligible"] = False
-                log.append(f"{n}: not eligible (the partner does not earn its penalty over the lead refitted with the "
-                           "re-selected calibration parameters, the pair does not beat one of its effects alone, or "
-                           "the partner's fitted signature is below the record gate)")
+                log.append(f"{n}: not eligible (the partner does not earn its penalty over {nested_label}, the pair "
+                           "does not beat one of its effects alone, or the partner's fitted signature is below the "
+                           "record gate)")
     rng = np.random.default_rng(seed)
     B = int(prof["bootstrap"])
     names = [n for n in stats if stats[n].get("eligible", True)]
@@ -942,8 +952,8 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
                       f"{'calibration refit' if ref is cal else 'design under test'} left it at noise level: "
                       f"{chi_cal_h:.0f} for {nh} features; a record's gate disagreed)")
                    + f", wins {100 * st['share']:.0f} % of {B} cycle bootstraps"
-                   + (f"; the partner gains {st['nested_gain']:.1f} after its penalty {st['nested_penalty']:.1f} over the "
-                      "lead refitted with the re-selected calibration parameters" if "nested_gain" in st else ""))
+                   + (f"; the partner gains {st['nested_gain']:.1f} after its penalty {st['nested_penalty']:.1f} over "
+                      f"{nested_label}" if "nested_gain" in st else ""))
     viable = [n for n in names if stats[n]["gain"] > 0 and stats[n]["closed"] >= float(dcfg["min_closed"])]
     cand_rows = []
     for c, e, _ in ranking:
