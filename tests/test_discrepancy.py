@@ -55,6 +55,14 @@ def leak(tmp_path_factory) -> Path:
                 values={_leak_key(): 6e-5})
 
 
+@pytest.fixture(scope="module")
+def leak_lag(tmp_path_factory) -> Path:
+    """The worn band of ``leak`` and an active valve lagging the current by its typical 5 ms."""
+    return _lab(tmp_path_factory.mktemp("lab"), "leak_lag", 13,
+                effects={"piston_leakage": True, "active_valve_lag": True},
+                values={_leak_key(): 6e-5, "active_valve_lag.tau": 5e-3})
+
+
 def _leak_key() -> str:
     """The leakage gap's key: ``piston_leakage.gap`` with the effect-parameter API, else the constant."""
     d = load(ROOT / "conf" / "lab" / "nominal.yaml")
@@ -602,3 +610,14 @@ def test_a_pair_replaces_the_best_single_only_when_it_describes_the_heldout_data
     assert _pick({**gain, "b+a": -1.0}, score) == "a"   # nor one that gains nothing over its own calibration
     assert _pick({"a": -1.0, "b": 0.0}, {"a": 1.0, "b": 1.0}) is None
     assert _pick({"a": 5.0, "b": 9.0}, {"a": 1.0, "b": 50.0}) == "b"   # singles: by their gain, as before
+
+
+def test_two_hidden_effects_are_both_named(leak_lag, tmp_path):
+    """Forward selection: a valve that follows the current with a lag (active_valve_lag, typical 5 ms) and
+    a worn piston band (leakage) hidden together. One leads; the other is found on what the lead fit
+    leaves, passes the nested test over the recalibrated lead and is resolvable at its fitted value:
+    both named, the augmented design carries both."""
+    doc = _run(leak_lag, tmp_path / "o")
+    assert doc["verdict"] == "named" and set(doc["effects"]) == {"piston_leakage", "active_valve_lag"}, doc
+    d = load(tmp_path / "o" / "design.yaml", map_dirs=[ROOT / "conf" / "design"])
+    assert d.effects["piston_leakage"] and d.effects["active_valve_lag"]

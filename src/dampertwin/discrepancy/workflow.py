@@ -872,11 +872,12 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
             off_b = problem.simulate([fits[pc.name].design.with_overrides(
                 {f"effects.{e}": False for e in b.effects})], f"{pc.name}: partner off")[0]
             sig = problem.z(off_b) - problem.z(fits[pc.name].S)
+            ratio, rec = worst_record(problem, sig, allm, alpha) if np.all(np.isfinite(sig)) else (0.0, "")
             nJ = Jc.shape[1]
             if nJ and np.all(np.isfinite(sig)):
                 A = np.vstack([Jc, np.eye(nJ) / ps])
-                sig = sig - Jc @ np.linalg.lstsq(A, np.concatenate([sig, np.zeros(nJ)]), rcond=None)[0]
-            ratio, rec = worst_record(problem, sig, allm, alpha) if np.all(np.isfinite(sig)) else (0.0, "")
+                sigp = sig - Jc @ np.linalg.lstsq(A, np.concatenate([sig, np.zeros(nJ)]), rcond=None)[0]
+                log.append(f"DEBUG projected ratio {worst_record(problem, sigp, allm, alpha)}")
             pair_test[pc.name]["partner_ratio"] = ratio
             ok = ratio >= 1.0
             log.append(f"pair {pc.name}: the partner's signature at its fitted values, beyond the calibration pool, "
