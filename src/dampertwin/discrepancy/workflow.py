@@ -863,26 +863,23 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
                    f"{ch_pair + pen_of(pc):.1f} (alone: " + ", ".join(f"{m} {v:.1f}" for m, v in alone.items()) + ")"
                    + ("" if ok else ": not eligible"))
         if ok and dcfg.get("partner_resolvable", True) and alpha > 0:
-            # (c) the partner at its fitted magnitude must leave a disagreement the records resolve: its
-            # signature (the pair fit with the partner switched off, minus the pair fit), less what the
-            # calibration pool absorbs, past the record gate (as `resolvability`). A partner fitted at a
-            # small fraction of its typical magnitude that still passes (a) and (b) is absorbing model
-            # error spread over many records (the lab's own friction law on the shipped sample), not
-            # resolving an effect
+            # (c) relevance, beside (a)'s significance: the partner at its fitted values must move some
+            # record past its gate (its signature: the pair fit with the partner switched off, minus the
+            # pair fit; chi^2 over the record's gate quantile, as `worst_record`). A partner fitted at a
+            # small fraction of its typical magnitude can pass (a) by absorbing model error spread thinly
+            # over many records (rod_friction_asymmetric at 0.15x typical on the shipped sample: 0.14 x
+            # the gate); a real partner moves its record well past it (a 60 um leakage beside a valve
+            # lag: 2.6 x). The signature is taken at the pair's own calibration, not less what the pool
+            # could absorb: (a) already measured what the recalibrated lead absorbs, and the projection
+            # on the whole pool (a linear, weakly-penalised worst case) rejected that leakage (0.66 x)
             off_b = problem.simulate([fits[pc.name].design.with_overrides(
                 {f"effects.{e}": False for e in b.effects})], f"{pc.name}: partner off")[0]
             sig = problem.z(off_b) - problem.z(fits[pc.name].S)
             ratio, rec = worst_record(problem, sig, allm, alpha) if np.all(np.isfinite(sig)) else (0.0, "")
-            nJ = Jc.shape[1]
-            if nJ and np.all(np.isfinite(sig)):
-                A = np.vstack([Jc, np.eye(nJ) / ps])
-                sigp = sig - Jc @ np.linalg.lstsq(A, np.concatenate([sig, np.zeros(nJ)]), rcond=None)[0]
-                log.append(f"DEBUG projected ratio {worst_record(problem, sigp, allm, alpha)}")
             pair_test[pc.name]["partner_ratio"] = ratio
             ok = ratio >= 1.0
-            log.append(f"pair {pc.name}: the partner's signature at its fitted values, beyond the calibration pool, "
-                       f"in its most affected record {rec}: {ratio:.2f} x the record gate"
-                       + ("" if ok else ": not resolvable on these records, not eligible"))
+            log.append(f"pair {pc.name}: the partner at its fitted values moves its most affected record {rec} by "
+                       f"{ratio:.2f} x the record gate" + ("" if ok else ": below the gate, not eligible"))
         if ok:
             break
     res["fits"] = fits
