@@ -621,3 +621,22 @@ def test_two_hidden_effects_are_both_named(leak_lag, tmp_path):
     assert doc["verdict"] == "named" and set(doc["effects"]) == {"piston_leakage", "active_valve_lag"}, doc
     d = load(tmp_path / "o" / "design.yaml", map_dirs=[ROOT / "conf" / "design"])
     assert d.effects["piston_leakage"] and d.effects["active_valve_lag"]
+
+
+def test_a_pair_is_eligible_only_when_both_its_effects_are_relevant():
+    """`_pair_eligible`: the partner's nested gain (a), the pair's absolute score against each effect
+    alone (b) and the relevance of BOTH effects at their fitted values (c: each moves some record past
+    its gate). Seed-101 matrix, case 32: a hidden pressure-loaded seal was named second behind a
+    rod_friction_asymmetric lead that won the first round by chance; inside the pair that lead moved no
+    record past its gate."""
+    from dampertwin.discrepancy.workflow import _pair_eligible
+
+    t = {"nested_gain": 61.6, "abs": 49.8, "alone_abs": {"lead": 114.6, "partner": 92.0},
+         "partner_ratio": 2.51, "lead_ratio": 1.8}
+    assert _pair_eligible(t)
+    assert not _pair_eligible({**t, "lead_ratio": 0.3})       # the lead carries nothing inside the pair
+    assert not _pair_eligible({**t, "partner_ratio": 0.14})   # nor the partner
+    assert not _pair_eligible({**t, "nested_gain": -5.0})     # the partner does not earn its penalty
+    assert not _pair_eligible({**t, "abs": 95.0})             # worse than the partner alone
+    no_c = {k: v for k, v in t.items() if not k.endswith("_ratio")}
+    assert _pair_eligible(no_c)                                # relevance tests switched off
