@@ -8,7 +8,7 @@ from _common import CONF, ROOT, OUT, baseline, config, measured_dir, read_overla
 from dampertwin.calibration.approach2 import check_damper_record
 from dampertwin.design import load
 from dampertwin.errors import UserError
-from dampertwin.io import read_frame
+from dampertwin.io import read_record
 from dampertwin.protocols import load_protocol
 
 OUT2 = ROOT / "results" / "approach2"
@@ -29,7 +29,7 @@ def damper_record(test: str, runs=None, tail_s=None):
     of each); with its protocol."""
     path = measured_dir() / test / "baseline.parquet"
     proto = load_protocol(CONF / "test" / f"{test}.yaml")
-    df, meta = read_frame(path)
+    df, meta = read_record(path)
     return check_damper_record(df, str(path), list(runs) if runs else None, tail_s), proto, meta
 
 

@@ -19,7 +19,7 @@ from _approach2 import CURRENTS, OUT2, approach1_design, approach2_design
 from _common import CONF, config, config_hash, measured_dir, stage
 from dampertwin.calibration.approach2 import input_cutoff
 from dampertwin.design import yaml_load_file
-from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.io import read_record, runs, write_frame
 from dampertwin.protocols import load_protocol
 from dampertwin.report import RECORD_CUTOFF, simulate_from_record
 from dampertwin.sensors import sensor_lowpass
@@ -32,10 +32,10 @@ def records(test: str):
     if test == "random":
         out = []
         for run, case in CURRENTS.items():
-            df, _ = read_frame(measured_dir() / "random" / f"{case}.parquet", "random")
+            df, _ = read_record(measured_dir() / "random" / f"{case}.parquet", "random", conf=CONF)
             out += [(run, float(g["current [A]"].iloc[0]), g) for _, g in runs(df)]
         return out
-    df, _ = read_frame(measured_dir() / test / "baseline.parquet")
+    df, _ = read_record(measured_dir() / test / "baseline.parquet", test, conf=CONF)
     return [(name, float(g["current [A]"].iloc[0]), g) for name, g in runs(df)]
 
 

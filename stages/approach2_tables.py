@@ -16,7 +16,7 @@ from _common import CONF, config, config_hash, measured_dir, stage, write_json, 
 from dampertwin import kpi
 from dampertwin.calibration.approach2 import force_agreement
 from dampertwin.design import yaml_load
-from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.io import read_frame, read_record, runs, write_frame
 from dampertwin.protocols import load_protocol
 
 APPROACHES = ("approach1", "approach2")
@@ -48,10 +48,10 @@ def main() -> None:
     cmp_cfg = yaml_load((CONF / "compare.yaml").read_text())
     n_tr = int(cmp_cfg["transient_cycles"])
     fl = cmp_cfg["flag"]
-    meas16, mmeta = read_frame(measured_dir() / "monosine16" / "baseline.parquet")
+    meas16, mmeta = read_record(measured_dir() / "monosine16" / "baseline.parquet", "monosine16", conf=CONF)
     synthetic = bool(mmeta.get("synthetic"))
-    meas_ver, _ = read_frame(measured_dir() / "verification" / "baseline.parquet")
-    meas_rnd = {run: read_frame(measured_dir() / "random" / f"{case}.parquet", "random")[0]
+    meas_ver, _ = read_record(measured_dir() / "verification" / "baseline.parquet", "verification", conf=CONF)
+    meas_rnd = {run: read_record(measured_dir() / "random" / f"{case}.parquet", "random", conf=CONF)[0]
                 for run, case in CURRENTS.items()}
     m16, mver = by_run(meas16), by_run(meas_ver)
     tables, ver_rows, metrics = {}, [], {}

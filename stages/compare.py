@@ -12,7 +12,7 @@ import pandas as pd
 from _common import CONF, OUT, config, config_hash, read_overlay, write_json, write_text, measured_dir, params
 from dampertwin import kpi, report
 from dampertwin.design import yaml_load
-from dampertwin.io import read_frame, runs, write_frame
+from dampertwin.io import read_frame, read_record, runs, write_frame
 from dampertwin.protocols import load_protocol
 from dampertwin.calibration.uncertainty import summary
 from dampertwin.study_report import build_report
@@ -28,7 +28,7 @@ def main() -> None:
     synthetic = False
     for v in load_variants(CONF / "variant"):
         sim_m = read_frame(OUT / "sim" / v.case / "monosine.parquet", "monosine")[0]
-        mea_m, mmeta = read_frame(measured_dir() / "monosine" / f"{v.case}.parquet", "monosine")
+        mea_m, mmeta = read_record(measured_dir() / "monosine" / f"{v.case}.parquet", "monosine", conf=CONF)
         synthetic = synthetic or bool(mmeta.get("synthetic"))
         ps = kpi.rod_acceleration_extremes(sim_m, f_mono, n_tr)
         pm = kpi.rod_acceleration_extremes(mea_m, f_mono, n_tr)
@@ -39,7 +39,7 @@ def main() -> None:
                     row[f"{src}_{h}_{e}"], row[f"{src}_{h}_{e}_std"] = pk[f"{h} {e}"], pk[f"{h} {e} std"]
         rows65.append(row)
         sim_r = read_frame(OUT / "sim" / v.case / "random.parquet", "random")[0]
-        mea_r = read_frame(measured_dir() / "random" / f"{v.case}.parquet", "random")[0]
+        mea_r = read_record(measured_dir() / "random" / f"{v.case}.parquet", "random", conf=CONF)[0]
         ls, lm = kpi.psd_levels(sim_r), kpi.psd_levels(mea_r)
         rows66.append(dict(no=v.row, case=v.title, current=v.current, sim_200=ls["200 Hz [dB]"],
                            meas_200=lm["200 Hz [dB]"], sim_300=ls["300 Hz [dB]"], meas_300=lm["300 Hz [dB]"]))
@@ -59,7 +59,7 @@ def main() -> None:
         fig.savefig(pdir / "psd.png", dpi=100)
         plt.close(fig)
     sim_c = read_frame(OUT / "sim" / "baseline_1.6" / "curving.parquet", "curving")[0]
-    mea_c = read_frame(measured_dir() / "curving" / "baseline.parquet", "curving")[0]
+    mea_c = read_record(measured_dir() / "curving" / "baseline.parquet", "curving", conf=CONF)[0]
     by_cur = {}
     for name, g in runs(sim_c):
         by_cur.setdefault(float(g["current [A]"].iloc[0]), []).append((name, g))

@@ -10,8 +10,8 @@ from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
 from dampertwin.calibration.polish import PolishSettings
-from dampertwin.io import read_frame, runs
-from dampertwin.protocols import load_protocol, recording_rates
+from dampertwin.io import read_record, runs
+from dampertwin.protocols import load_protocol
 from dampertwin.report import simulate_from_record
 
 VALVES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
@@ -24,7 +24,7 @@ def main() -> None:
         d = d.with_overrides(read_overlay(OUT / "valves" / v / "overlay.yaml"))
     cal = yaml_load_file(CONF / "calibration" / "compliance.yaml")
     proto = load_protocol(CONF / "test" / "compliance.yaml")
-    meas, _ = read_frame(measured_dir() / "compliance" / "baseline.parquet", "compliance", rate=recording_rates(proto))
+    meas, _ = read_record(measured_dir() / "compliance" / "baseline.parquet", "compliance", conf=CONF)
     seed = seed_for("compliance_fit")
     out = OUT / "compliance"
     bandwidth = proto.get("sensors", {}).get("force")

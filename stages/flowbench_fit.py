@@ -13,9 +13,9 @@ from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
 from dampertwin.calibration.polish import PolishSettings
-from dampertwin.io import read_frame
+from dampertwin.io import read_record
 from dampertwin.simulation import simulate
-from dampertwin.protocols import build_runs, load_protocol, recording_rates
+from dampertwin.protocols import build_runs, load_protocol
 from dampertwin.variants import VALVE_DESIGNS, load_variant
 
 
@@ -28,7 +28,7 @@ def main(name: str) -> None:
     cal = yaml_load_file(CONF / "calibration" / "valves.yaml")
     fb = load_protocol(CONF / "test" / "flowbench.yaml")
     bench = {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
-    meas, _ = read_frame(measured_dir() / "flowbench" / f"{name}.parquet", "flowbench", rate=recording_rates(fb))
+    meas, _ = read_record(measured_dir() / "flowbench" / f"{name}.parquet", "flowbench", conf=CONF, valve=valve)
     out = OUT / "valves" / name
     seed = seed_for(f"flowbench_fit/{name}")
     res = fit_valve(d, valve, meas, cal, GASettings.from_config(cfg.profile.ga.valves), seed, bench=bench,

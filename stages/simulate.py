@@ -10,8 +10,8 @@ import pandas as pd
 
 from _common import CONF, OUT, config, config_hash, measured_dir, stage
 from dampertwin.design import load
-from dampertwin.io import read_frame, runs, write_frame
-from dampertwin.protocols import load_protocol, recording_rates
+from dampertwin.io import read_record, runs, write_frame
+from dampertwin.protocols import load_protocol
 from dampertwin.sensors import sensor_lowpass
 from dampertwin.report import simulate_from_record
 from dampertwin.variants import check_current, load_variant
@@ -29,8 +29,8 @@ def main(case: str) -> None:
         src = measured_dir() / test / f"{('baseline' if test == 'curving' else case)}.parquet"
         proto = load_protocol(CONF / "test" / f"{test}.yaml")
         sensors = proto.get("sensors", {})
-        meas, mmeta = read_frame(src, test, current_range=(design.pq_map.currents[0], design.pq_map.currents[-1]),
-                                 rate=recording_rates(proto))
+        meas, mmeta = read_record(src, test, conf=CONF,
+                                  current_range=(design.pq_map.currents[0], design.pq_map.currents[-1]))
         frames = []
         for name, g in runs(meas):
             cur = float(g["current [A]"].iloc[0]) if test == "curving" else variant.current

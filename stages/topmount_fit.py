@@ -12,8 +12,8 @@ from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
 from dampertwin.calibration.polish import PolishSettings
-from dampertwin.io import read_frame, runs
-from dampertwin.protocols import load_protocol, recording_rates
+from dampertwin.io import read_record, runs
+from dampertwin.protocols import load_protocol
 from dampertwin.report import simulate_from_record
 from dampertwin.variants import TOP_MOUNTS, load_variant
 
@@ -25,7 +25,7 @@ def main(name: str) -> None:
         d = load_variant(CONF / "variant" / f"{TOP_MOUNTS[name]}.yaml").apply(d)
     cal = yaml_load_file(CONF / "calibration" / "topmount.yaml")
     proto = load_protocol(CONF / "test" / "topmount.yaml")
-    meas, _ = read_frame(measured_dir() / "topmount" / f"{name}.parquet", "topmount", rate=recording_rates(proto))
+    meas, _ = read_record(measured_dir() / "topmount" / f"{name}.parquet", "topmount", conf=CONF)
     seed = seed_for(f"topmount_fit/{name}")
     out = OUT / "topmount" / name
     bandwidth = proto.get("sensors", {}).get("force")

@@ -35,7 +35,7 @@ import pandas as pd
 from numba import njit
 
 from .design import Design, load as load_design, yaml_load
-from .io import read_frame, runs
+from .io import runs
 from .model.rod_friction import lugre, stribeck
 
 FRICTION_PARAMS = ("F_c", "F_s", "k_b", "s2", "c_comp", "vd", "a_s", "alpha_s")
@@ -185,8 +185,12 @@ def _write_json(path: Path, obj) -> Path:
     return path
 
 
-def _read(path, protocol=None) -> pd.DataFrame:
-    return read_frame(Path(path), protocol)[0]
+def _read(path, protocol=None, valve=None) -> pd.DataFrame:
+    """A record through the project's one measurement reader (protocol rate, duration, labels, magnitudes,
+    dead channels, force sign; ``protocol`` None: the one its metadata names, else a generic device record)."""
+    from .io import read_record
+
+    return read_record(Path(path), protocol, valve=valve, require=("time", "force", "displacement|velocity"))[0]
 
 
 # ---------------------------------------------------------------- friction fit
@@ -527,7 +531,7 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
     files = []
     for p in [data, *predict]:
         cases = []
-        for _, g in runs(_read(p, "flowbench")):
+        for _, g in runs(_read(p, "flowbench", valve=valve)):
             t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
             cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
         files.append((str(p), cases))

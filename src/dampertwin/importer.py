@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from . import io
+from .errors import UserError
 
 G0 = 9.80665  # [m/s^2] standard gravity (same as kpi.G)
 
@@ -62,7 +63,7 @@ ALIASES = {"µm": "um", "μm": "um", "µs": "us", "m/s²": "m/s^2", "°C": "degC
 P_ATM = 101325.0  # [Pa] added to gauge pressures
 
 
-class MappingError(ValueError):
+class MappingError(UserError):
     """A mapping or source problem; the message names the file and column."""
 
 
@@ -90,14 +91,23 @@ def file_sha256(path: str | os.PathLike) -> str:
 
 
 def _read_source(src: Path, csv_kw: dict) -> pd.DataFrame:
-    if not src.is_file():
-        raise MappingError(f"{src}: file not found")
-    try:
-        if src.suffix == ".parquet":
-            return pd.read_parquet(src)
-        return pd.read_csv(src, **csv_kw)
-    except Exception as e:
-        raise MappingError(f"{src}: cannot read: {e}") from None
+    """The source table through the measurement reader's file checks (size limit, readable, not empty)."""
+    return io.read_table(src, csv_kw)[0]
+
+
+def _plain(o):
+    """A YAML value as JSON-safe data (keys as strings, dates and the like as text)."""
+    if isinstance(o, dict):
+        return {str(k): _plain(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_plain(v) for v in o]
+    return o if isinstance(o, (str, int, float, bool, type(None))) else str(o)
+
+
+def _number(v, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+        raise MappingError(f"{where}: {v!r}; expected a finite number")
+    return float(v)
 
 
 def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.DataFrame:
@@ -114,6 +124,8 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
         if not isinstance(spec, dict) or "quantity" not in spec:
             raise MappingError(f"{label}: mapping entry needs 'quantity' (and 'unit')")
         q = str(spec["quantity"]).strip()
+        if q != "run" and q not in io.UNITS:
+            raise MappingError(f"{label}: unknown quantity {q!r}; expected one of run, {', '.join(io.UNITS)}")
         if q == "run":
             out["run"] = df[name].astype(str).to_numpy()
             continue
@@ -129,17 +141,26 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
         col = f"{q} [{si}]"
         if col in out:
             raise MappingError(f"{label}: quantity {q!r} mapped twice")
-        out[col] = x * float(spec.get("scale", 1.0))
+        out[col] = x * _number(spec.get("scale", 1.0), f"{label}: scale")
     n = len(df)
-    for q, spec in (mapping.get("constants") or {}).items():
+    consts = mapping.get("constants") or {}
+    if not isinstance(consts, dict):
+        raise MappingError(f"{where}: 'constants:' must map a quantity to {{value, unit}}")
+    for q, spec in consts.items():
         label = f"{where}: constant {q!r}"
         if not isinstance(spec, dict) or "value" not in spec or "unit" not in spec:
             raise MappingError(f"{label}: needs 'value' and 'unit'")
-        x, si = to_si([spec["value"]], spec["unit"], where=label)
+        if q not in io.UNITS:
+            raise MappingError(f"{label}: unknown quantity {q!r}; expected one of {', '.join(io.UNITS)}")
+        x, si = to_si([_number(spec["value"], f"{label}: value")], spec["unit"], where=label)
         if q in io.UNITS and io.UNITS[q] != si:
             raise MappingError(f"{label}: unit {spec['unit']!r} is a {si} unit but {q!r} needs {io.UNITS[q]!r}")
         out[f"{q} [{si}]"] = np.full(n, x[0])
     res = pd.DataFrame(out)
+    if mapping.get("run") is not None and "run" not in res:  # one label for the whole file
+        if not isinstance(mapping["run"], str) or not mapping["run"]:
+            raise MappingError(f"{where}: run: {mapping['run']!r}; expected the record's run label (e.g. I1.6)")
+        res["run"] = mapping["run"]
     if mapping.get("time_offset") and "time [s]" in res:
         if "run" in res:
             res["time [s]"] = res["time [s]"] - res.groupby("run")["time [s]"].transform("first")
@@ -155,34 +176,40 @@ def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike
     """Convert ``src`` (CSV / Parquet) with ``mapping`` (dict or YAML path) and
     write ``out`` (Parquet, project schema). ``protocol`` (default: the
     mapping's ``protocol`` or the parent folder name of ``out`` when it is a
-    known test) selects the schema check; the written file must pass
-    ``io.read_frame`` or it is removed and the errors raised."""
-    from .design import yaml_load
+    known test) selects the checks of ``io.read_record`` (rate, duration,
+    labels, magnitudes, sign) the record must pass before it is written."""
+    from .design import ConfigTextError, yaml_load_file
+    from .io.record import default_conf
 
     src, out = Path(src), Path(out)
     map_where = "mapping"
     if not isinstance(mapping, dict):
         map_where = str(mapping)
+        if not Path(mapping).is_file():
+            raise MappingError(f"{map_where}: file not found")
         try:
-            mapping = yaml_load(Path(mapping).read_text())
-        except FileNotFoundError:
-            raise MappingError(f"{map_where}: file not found") from None
+            mapping = yaml_load_file(mapping)  # duplicate keys, bad YAML: one line naming file and line
+        except ConfigTextError as e:
+            raise MappingError(str(e)) from None
         if not isinstance(mapping, dict):
             raise MappingError(f"{map_where}: expected a mapping with a 'columns:' section")
     if out.suffix != ".parquet":
         raise MappingError(f"{out}: output must be a .parquet file")
-    protocol = protocol or mapping.get("protocol") or (out.parent.name if out.parent.name in io.REQUIRED else None)
+    for key in ("protocol", "csv"):
+        if mapping.get(key) is not None and not isinstance(mapping[key], str if key == "protocol" else dict):
+            raise MappingError(f"{map_where}: {key}: {mapping[key]!r}; expected "
+                               + ("a test name (conf/test/<test>.yaml)" if key == "protocol" else "a mapping of "
+                                  "pandas.read_csv keywords"))
+    named = out.parent.name if (default_conf() / "test" / f"{out.parent.name}.yaml").is_file() else None
+    protocol = protocol or mapping.get("protocol") or named
     df = _read_source(src, dict(mapping.get("csv") or {}))
     res = convert(df, mapping, where=f"{src} (mapping {map_where})")
     meta = {"imported": True, "synthetic": False, "source": src.name, "source_sha256": file_sha256(src),
-            "mapping": mapping, "protocol": protocol,
-            "units": {k: v.get("unit") for k, v in mapping["columns"].items() if isinstance(v, dict)}}
+            "mapping": _plain(mapping), "protocol": protocol,
+            "units": {str(k): v.get("unit") for k, v in mapping["columns"].items() if isinstance(v, dict)}}
+    # the record passes the measurement reader's checks before anything is written (an earlier file stays)
+    io.check_record(res, meta, str(out), protocol)
     io.write_frame(out, res, meta)
-    try:
-        io.read_frame(out, protocol)
-    except io.DataError:
-        out.unlink(missing_ok=True)
-        raise
     return out
 
 

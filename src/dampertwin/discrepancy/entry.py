@@ -15,8 +15,8 @@ import numpy as np
 
 from ..design import ConfigTextError, DesignError, load, yaml_load_file
 from ..errors import UserError
-from ..io import read_frame, runs
-from ..protocols import flow_bench, load_protocol, recording_rates
+from ..io import check_out_dir, read_record, runs
+from ..protocols import flow_bench, load_protocol
 from ..variants import load_variant
 from . import features as F
 from .workflow import Problem, record_pool, run, verdict_document
@@ -97,7 +97,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         bench = flow_bench(proto) if cfg_name == "valve" else None
         flow_cut = _flow_input_cutoff(conf) if cfg_name == "valve" else None
         for f in files:
-            df, meta = read_frame(f, test, current_range=(lo, hi), rate=recording_rates(proto))
+            df, meta = read_record(f, test, conf=conf, current_range=(lo, hi))  # the one measurement reader
             case = f.stem
             vpath = conf / "variant" / f"{case}.yaml"
             if test in ("monosine", "random", "training", "verification") and vpath.is_file():
@@ -113,9 +113,6 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
                     raise DiscrepancyError(f"{f}: " + ("no 'run' column naming the valve" if name is None else
                                                        f"run {name!r} is not a flow-bench valve")
                                            + f" of {proto_path} (expected one of {', '.join(proto.get('valves', {}))})")
-                if cfg_name == "valve" and f.stem in proto.get("valves", {}) and str(name) != f.stem:
-                    notes.append(f"{f}: the file is named after valve {f.stem} but its run column says {name}; "
-                                 f"used as {name}")
                 cur = float(g["current [A]"].iloc[0]) if "current [A]" in g else 1.6
                 if cfg_name != "valve" and not F.keep_run(test, cur, g["time [s]"].to_numpy(float),
                                                           g["displacement [m]"].to_numpy(float),
@@ -187,9 +184,8 @@ def check_out(out: Path, measured: Path, design: Path) -> None:
     working directory, the measured folder or the design file, and an
     existing OUT may hold only what the workflow writes
     (:func:`is_earlier_output`): anything else is refused, never deleted."""
+    check_out_dir(out)  # a folder or nothing yet, under a writable folder
     o = out.resolve()
-    if o.exists() and not o.is_dir():
-        raise DiscrepancyError(f"--out {out}: exists and is not a folder")
     parent = o.parent
     while not parent.exists():
         parent = parent.parent
@@ -225,6 +221,7 @@ def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp", dir=out.parent))
+    old = None
     try:
         _dump_design(res["design"], tmp)
         (tmp / "verdict.json").write_text(json.dumps(doc, indent=2) + "\n")
@@ -236,14 +233,19 @@ def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
         if out.exists():  # an earlier output (check_out): moved aside, then the new one moved in
             old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old", dir=out.parent))
             os.replace(out, old / out.name)
-        os.replace(tmp, out)
-        if old is not None:
-            if (old / out.name / ".gitignore").is_file():  # a DVC stage's: kept
-                os.replace(old / out.name / ".gitignore", out / ".gitignore")
-            shutil.rmtree(old, ignore_errors=True)
+        try:
+            os.replace(tmp, out)
+        except OSError:
+            if old is not None:  # the earlier output goes back where it was
+                os.replace(old / out.name, out)
+            raise
+        if old is not None and (old / out.name / ".gitignore").is_file():  # a DVC stage's: kept
+            os.replace(old / out.name / ".gitignore", out / ".gitignore")
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+        if old is not None and old.exists():  # never an (empty) .NAME.old* left behind
+            shutil.rmtree(old, ignore_errors=True)
     # the augmented design must load from its new place, on its own
     load(out / "design.yaml")
     return doc

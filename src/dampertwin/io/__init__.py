@@ -16,8 +16,8 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .design.schema import SI_UNITS
-from .errors import UserError
+from ..design.schema import SI_UNITS
+from ..errors import UserError
 
 META_KEY = b"dampertwin"
 
@@ -34,8 +34,8 @@ REQUIRED = {
     "curving": ("time", "displacement", "force", "current"),
     "monosine": ("time", "displacement", "force", "rod acceleration", "current"),
     "random": ("time", "displacement", "force", "rod acceleration", "current"),
-    "training": ("time", "displacement", "force", "rod acceleration", "current"),
-    "verification": ("time", "displacement", "force", "rod acceleration", "current"),
+    "training": ("time", "displacement", "force", "current"),  # damper or module (then rod acceleration too,
+    "verification": ("time", "displacement", "force", "current"),  # required by io.read_record)
     "topmount": ("time", "displacement", "force"),
     "thermal": ("time", "displacement", "force", "current", "oil temperature"),
     "friction": ("time", "displacement", "force", "current", "precharge"),
@@ -44,9 +44,10 @@ REQUIRED = {
 MIN_DURATION = {"flowbench": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
                 "topmount": 0.02, "training": 1.0, "verification": 1.0, "thermal": 2.0,
                 "friction": 0.5}
-from .excitation import UNIFORM_TOL, grid_deviation  # noqa: E402  (time stamps within UNIFORM_TOL intervals of a grid)
+from ..excitation import UNIFORM_TOL, grid_deviation  # noqa: E402  (time stamps within UNIFORM_TOL intervals of a grid)
 T_OIL_RANGE = (233.15, 423.15)  # [K] an oil temperature a damper test can have (-40 .. 150 degC)
 PRECHARGE_RANGE = (1.5e5, 5.0e6)  # [Pa] absolute gas precharge of a damper (0.5 .. 49 bar gauge)
+MAX_FILE_MB = 64.0  # [MB] largest measurement file read (DAMPERTWIN_MAX_FILE_MB raises it): a junk file is refused, not parsed
 RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's still accepted
 # channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
 EXCITED = {"flowbench": ("flow", "dp"),
@@ -119,21 +120,62 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
     where = str(path)
     if protocol is not None and protocol not in REQUIRED:
         raise DataError([f"{where}: unknown protocol {protocol!r}; expected one of {', '.join(REQUIRED)}"])
+    df, meta = read_table(path)
+    return check_frame(df, meta, where, protocol, current_range=current_range, rate=rate), meta
+
+
+def max_file_bytes() -> int:
+    """The size limit of a measurement file [bytes] (MAX_FILE_MB, or $DAMPERTWIN_MAX_FILE_MB)."""
+    env = os.environ.get("DAMPERTWIN_MAX_FILE_MB", "").strip()
+    try:
+        mb = float(env) if env else MAX_FILE_MB
+    except ValueError:
+        mb = MAX_FILE_MB
+    return int(mb * 1024 * 1024)
+
+
+def read_table(path: str | os.PathLike, csv_kw: dict | None = None) -> tuple[pd.DataFrame, dict]:
+    """The raw table of a .parquet or .csv file (and its metadata), before
+    any schema check: a missing, oversized, unreadable or empty (header
+    only) file is a DataError naming it. Used by :func:`read_frame` and the
+    importer (a source in the user's own columns)."""
+    path = Path(path)
+    where = str(path)
+    if path.is_dir():
+        raise DataError([f"{where}: is a folder; expected a .parquet or .csv file"])
     if not path.is_file():
         raise DataError([f"{where}: file not found"])
+    if path.suffix not in (".parquet", ".csv"):
+        raise DataError([f"{where}: unsupported file type {path.suffix!r}; expected .parquet or .csv"])
+    size, limit = path.stat().st_size, max_file_bytes()
+    if size > limit:
+        raise DataError([f"{where}: file is {size / 2**20:.1f} MB, larger than the {limit / 2**20:g} MB limit of a "
+                         f"measurement file (not read; split the record, or raise DAMPERTWIN_MAX_FILE_MB)"])
+    if size == 0:
+        raise DataError([f"{where}: empty file (0 bytes); expected a record"])
     try:
         if path.suffix == ".parquet":
             df = pq.read_table(path).to_pandas()
             meta = read_meta(path)
-        elif path.suffix == ".csv":
-            df = pd.read_csv(path)
-            meta = {}
         else:
-            raise DataError([f"{where}: unsupported file type {path.suffix!r}; expected .parquet or .csv"])
-    except DataError:
-        raise
+            df = pd.read_csv(path, **(csv_kw or {}))
+            meta = {}
     except Exception as e:  # unreadable file: report it, never a raw traceback
-        raise DataError([f"{where}: cannot read: {e}"]) from None
+        raise DataError([f"{where}: cannot read: {' '.join(str(e).split())[:300]}"]) from None
+    if len(df) == 0:
+        raise DataError([f"{where}: empty record: no rows (a header of {len(df.columns)} columns only); expected a record"])
+    return df, meta
+
+
+def check_frame(df: pd.DataFrame, meta: dict, where: str, protocol: str | None = None, *,
+                current_range: tuple[float, float] | None = None,
+                rate: float | dict[str, float] | None = None) -> pd.DataFrame:
+    """The schema checks of :func:`read_frame` on a frame in memory
+    (``where`` names it in the errors). Returns the frame."""
+    if protocol is not None and protocol not in REQUIRED:
+        raise DataError([f"{where}: unknown protocol {protocol!r}; expected one of {', '.join(REQUIRED)}"])
+    if len(df) == 0:
+        raise DataError([f"{where}: empty record: no rows (a header of {len(df.columns)} columns only); expected a record"])
     errors: list[str] = []
     qty: dict[str, str] = {}
     if "run" in df:
@@ -197,8 +239,13 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
             continue
         if np.any(dt == 0):
             errors.append(f"{label}: column {tcol!r}: duplicated time at {float(t[1:][dt == 0][0])!r} s")
+        elif np.all(dt < 0):
+            errors.append(f"{label}: column {tcol!r}: reversed time axis (time decreases from {float(t[0])!r} to "
+                          f"{float(t[-1])!r} s); expected increasing time")
+            continue
         elif np.any(dt < 0):
             errors.append(f"{label}: column {tcol!r}: time not increasing at {float(t[1:][dt < 0][0])!r} s")
+            continue
         elif grid_deviation(t) > UNIFORM_TOL:
             errors.append(f"{label}: column {tcol!r}: non-uniform sampling (interval {dt.min():.6g} .. {dt.max():.6g} s; "
                           f"a time stamp {grid_deviation(t):.2g} intervals off the uniform grid, at most {UNIFORM_TOL:g}); "
@@ -208,7 +255,7 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
             fs = 1.0 / float(np.mean(dt))
             if want is not None and abs(fs - want) > RATE_TOL * want:
                 errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz; protocol {protocol} records at "
-                              f"{want:g} Hz (decimated or time-scaled record?)")
+                              f"{want:g} Hz ({_rate_hint(fs, want)})")
         if protocol is not None and t[-1] - t[0] < MIN_DURATION[protocol] * (1 - 1e-9):
             errors.append(f"{label}: record lasts {t[-1] - t[0]:.4g} s; protocol {protocol} needs >= "
                           f"{MIN_DURATION[protocol]:.4g} s")
@@ -238,7 +285,15 @@ def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
                           f"[{lo}, {hi}] A")
     if errors:
         raise DataError(errors)
-    return df, meta
+    return df
+
+
+def _rate_hint(fs: float, want: float) -> str:
+    """The likely cause of a sampling rate ``fs`` off the protocol's ``want`` [Hz]."""
+    for k, unit in ((1e3, "ms"), (1e6, "us"), (1 / 60.0, "min")):
+        if abs(fs * k - want) <= RATE_TOL * want:
+            return f"time in {unit} under a [s] header?"
+    return "decimated or time-scaled record?"
 
 
 def runs(df: pd.DataFrame) -> list[tuple[str | None, pd.DataFrame]]:
@@ -248,4 +303,8 @@ def runs(df: pd.DataFrame) -> list[tuple[str | None, pd.DataFrame]]:
     return [(str(k), g.reset_index(drop=True)) for k, g in df.groupby("run", sort=False)]
 
 
-__all__ = ["DataError", "UNITS", "REQUIRED", "column", "write_frame", "read_frame", "read_meta", "runs"]
+from .record import read_record, check_record  # noqa: E402  (the one reader of measurement files)
+from .outdir import check_out_dir, out_lock  # noqa: E402
+
+__all__ = ["DataError", "UNITS", "REQUIRED", "column", "write_frame", "read_frame", "read_meta", "runs",
+           "read_table", "check_frame", "read_record", "check_record", "check_out_dir", "out_lock"]

@@ -1,0 +1,79 @@
+"""Command-line arguments checked before any work: every numeric option in
+its range, every output path writable and of the right kind. A violation
+is an ArgumentError naming the option (one line, exit 2 via cli.main);
+``output_lock`` holds the output's lock while the command runs."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from pathlib import Path
+
+from .errors import UserError
+
+SEED_MAX = 2**32 - 1  # numpy's legacy seeding and the lab's per-case seeds are 32-bit
+# option -> (smallest allowed, what it means); checked when the option is given
+INT_RANGES = {
+    "population": (2, "GA population: an integer >= 2 (pairs of parents)"),
+    "generations": (1, "GA generations: an integer >= 1"),
+    "workers": (1, "parallel processes: an integer >= 1"),
+    "seed": (0, f"seed: an integer 0 .. {SEED_MAX}"),
+}
+OUT_KINDS = {"fit": "folder", "lab": "folder", "discrepancy": "folder", "import": "file"}
+
+
+class ArgumentError(UserError):
+    """A command-line option outside its range (the message names the option)."""
+
+
+def check_int(name: str, value) -> None:
+    lo, what = INT_RANGES[name]
+    bad = isinstance(value, bool) or not isinstance(value, int) or value < lo
+    if name == "seed" and not bad:
+        bad = value > SEED_MAX
+    if bad:
+        raise ArgumentError(f"--{name} {value!r}: expected {what}")
+
+
+def check_current(value, design_path) -> None:
+    """--current: finite and inside the active-valve P/Q map of the design."""
+    if not (isinstance(value, (int, float)) and math.isfinite(value)):
+        raise ArgumentError(f"--current {value!r}: expected a finite current in A")
+    from .design import load
+
+    d = load(design_path)
+    lo, hi = float(d.pq_map.currents[0]), float(d.pq_map.currents[-1])
+    if not lo - 1e-12 <= value <= hi + 1e-12:
+        raise ArgumentError(f"--current {value!r}: outside the active-valve map [{lo:g}, {hi:g}] A of {design_path}")
+
+
+def check_args(args) -> None:
+    """Range-check the parsed arguments of any subcommand (absent options pass)."""
+    from .io import check_out_dir
+
+    for name in INT_RANGES:
+        v = getattr(args, name, None)
+        if v is not None:
+            check_int(name, v)
+    if getattr(args, "current", None) is not None:
+        check_current(args.current, getattr(args, "design", None) or "conf/design/baseline.yaml")
+    kind = OUT_KINDS.get(getattr(args, "cmd", None))
+    if kind is not None and getattr(args, "out", None) is not None:
+        check_out_dir(args.out, "--out", file=kind == "file")
+        if kind == "file" and Path(args.out).suffix != ".parquet":
+            raise ArgumentError(f"--out {args.out}: expected a .parquet file")
+
+
+@contextlib.contextmanager
+def output_lock(args):
+    """The lock of the command's output (fit, lab, import, discrepancy) while it runs."""
+    if getattr(args, "cmd", None) not in ("fit", "lab", "import", "discrepancy") or getattr(args, "out", None) is None:
+        yield None
+        return
+    from .io import out_lock
+
+    with out_lock(args.out) as lock:
+        yield lock
+
+
+__all__ = ["ArgumentError", "check_args", "check_int", "check_current", "output_lock"]

@@ -1,0 +1,113 @@
+"""Output folders: checked before any work (a folder or not yet there,
+under a writable folder) and locked while a command writes them, so a second
+run on the same OUT is refused instead of mixing its files with the first's.
+
+The lock is a sibling file ``.NAME.lock`` holding the owner's process id; it
+is removed when the command ends (SIGTERM included); one left by a killed
+process (its id no longer running) is taken over.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from ..errors import UserError
+
+
+class OutputError(UserError):
+    """An output folder or file that cannot be written (the message names the option and path)."""
+
+
+def _existing_parent(p: Path) -> Path:
+    q = p.parent
+    while not q.exists() and q != q.parent:
+        q = q.parent
+    return q
+
+
+def check_out_dir(out: str | os.PathLike, option: str = "--out", *, file: bool = False) -> Path:
+    """``out`` may be written: a folder (or, ``file=True``, a file) or not yet
+    there, below a writable folder. OutputError naming ``option`` otherwise."""
+    o = Path(out)
+    if str(out).strip() == "":
+        raise OutputError(f"{option}: empty path; expected a {'file' if file else 'folder'}")
+    if file:
+        if o.is_dir():
+            raise OutputError(f"{option} {out}: is a folder; expected a file path")
+    elif o.exists() and not o.is_dir():
+        raise OutputError(f"{option} {out}: exists and is not a folder")
+    parent = _existing_parent(o.absolute())
+    if not parent.is_dir():
+        raise OutputError(f"{option} {out}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"{option} {out}: folder {parent} is not writable")
+    if o.exists() and not os.access(o, os.W_OK | (0 if file else os.X_OK)):
+        raise OutputError(f"{option} {out}: not writable")
+    return o
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def lock_path(out: str | os.PathLike) -> Path:
+    o = Path(out).absolute()
+    return o.parent / f".{o.name}.lock"
+
+
+@contextlib.contextmanager
+def out_lock(out: str | os.PathLike, option: str = "--out"):
+    """Hold the lock of output ``out`` while the block runs (see the module
+    docstring). A live owner: OutputError naming the lock and its process."""
+    lock = lock_path(out)
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            break
+        except FileExistsError:
+            try:
+                pid = int(lock.read_text().strip() or "0")
+            except (OSError, ValueError):
+                pid = 0
+            if pid and pid != os.getpid() and _alive(pid):
+                raise OutputError(f"{option} {out}: another dampertwin run (process {pid}) is writing it; wait for "
+                                  f"it to finish (lock file {lock})") from None
+            lock.unlink(missing_ok=True)  # left by a killed run
+        except OSError as e:
+            raise OutputError(f"{option} {out}: cannot create the lock file {lock}: {e.strerror}") from None
+    else:
+        raise OutputError(f"{option} {out}: another run took the lock file {lock} meanwhile")
+    with os.fdopen(fd, "w") as f:
+        f.write(f"{os.getpid()}\n")
+    old = None
+    if threading.current_thread() is threading.main_thread():  # SIGTERM unwinds (lock and temp files removed)
+        old = signal.getsignal(signal.SIGTERM)
+        if old in (signal.SIG_DFL, None):
+            signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+        else:
+            old = None
+    try:
+        yield lock
+    finally:
+        try:
+            if lock.read_text().strip() == str(os.getpid()):
+                lock.unlink()
+        except OSError:
+            pass
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
+
+
+__all__ = ["OutputError", "check_out_dir", "out_lock", "lock_path"]
