@@ -156,7 +156,8 @@ def test_fit_cli_valve_reports_nrmse_and_intervals(tmp_path):
     r = simulate(d.with_overrides({"piston_intake.a": 260.0}), ex, "valve", bench_valve="piston_intake", rate=1000.0)
     f = r.to_frame()
     rec = write_frame(tmp_path / "pi.parquet", pd.DataFrame(
-        {"time [s]": t, "flow [m^3/s]": q, "dp [Pa]": (f["p upstream [Pa]"] - f["p downstream [Pa]"]).to_numpy()[:len(t)]}),
+        {"time [s]": t, "flow [m^3/s]": q, "dp [Pa]": (f["p upstream [Pa]"] - f["p downstream [Pa]"]).to_numpy()[:len(t)],
+         "run": "piston_intake"}),
         {"synthetic": True})
     out = tmp_path / "fit"
     assert main(["fit", "valve", "--valve", "piston_intake", "--data", str(rec), "--out", str(out),
@@ -187,7 +188,8 @@ def _top_mount_record(tmp_path, offset: float, design_overrides: dict):
     ex = Excitation.from_samples(t, x)
     r = simulate(load(BASELINE).with_overrides(design_overrides), ex, "topmount", rate=fs)
     F = sensor_lowpass(r.to_frame()["top mount force [N]"].to_numpy()[:len(t)], 1000.0, fs) + offset
-    return write_frame(tmp_path / "tm.parquet", pd.DataFrame({"time [s]": t, "displacement [m]": x, "force [N]": F}),
+    return write_frame(tmp_path / "tm.parquet", pd.DataFrame({"time [s]": t, "displacement [m]": x, "force [N]": F,
+                                                             "run": "random"}),
                        {"synthetic": True})
 
 

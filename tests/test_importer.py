@@ -45,19 +45,19 @@ def test_wrong_dimension_and_missing_column_are_named():
 
 
 def test_import_writes_schema_with_provenance(tmp_path):
-    n = 2000
-    t_ms = np.arange(n) * 0.1  # 10 kHz in ms
+    n = 10_000
+    t_ms = np.arange(n) * 0.02  # 50 kHz (the monosine protocol's rate) in ms
     src = tmp_path / "rig.csv"
     pd.DataFrame({"Zeit": t_ms, "Weg": 5.0 * np.sin(2 * np.pi * 13 * t_ms / 1e3), "Kraft": 1.5 + 0.1 * np.cos(2 * np.pi * 13 * t_ms / 1e3),
                   "Acc": 2.0 + 0.5 * np.sin(2 * np.pi * 13 * t_ms / 1e3)}).to_csv(src, sep=";", index=False)
     mapping = tmp_path / "map.yaml"
-    mapping.write_text("protocol: monosine\ncsv: {sep: ';'}\ncolumns:\n"
+    mapping.write_text("protocol: monosine\nrun: I1.6\ncsv: {sep: ';'}\ncolumns:\n"
                        "  Zeit: {quantity: time, unit: ms}\n  Weg: {quantity: displacement, unit: mm}\n"
                        "  Kraft: {quantity: force, unit: kN}\n  Acc: {quantity: rod acceleration, unit: g}\n"
                        "constants:\n  current: {value: 1600, unit: mA}\n")
     out = import_measurement(src, mapping, tmp_path / "own" / "monosine" / "case.parquet")
     df, meta = read_frame(out, "monosine")
-    assert df["time [s]"].iloc[-1] == pytest.approx((n - 1) * 1e-4)
+    assert df["time [s]"].iloc[-1] == pytest.approx((n - 1) * 2e-5)
     assert df["displacement [m]"].abs().max() == pytest.approx(5e-3, rel=1e-3)
     assert df["force [N]"].iloc[0] == pytest.approx(1600.0)  # 1.5 + 0.1 kN at t = 0
     assert df["rod acceleration [m/s^2]"].iloc[0] == pytest.approx(2 * 9.80665)

@@ -97,9 +97,13 @@ def _main(argv: list[str]) -> int:
     from .cli_checks import check_args, output_lock
 
     check_args(args)  # every option in range, every output writable, before any work
-    if args.cmd in ("discrepancy", "lab", "import", "fit"):
-        with output_lock(args):  # a second run on the same output is refused while this one runs
-            return {"discrepancy": _run_discrepancy, "lab": _run_lab}.get(args.cmd, _run_import_fit)(args)
+    with output_lock(args):  # a second run on the same output is refused while this one runs
+        if args.cmd == "discrepancy":
+            return _run_discrepancy(args)
+        if args.cmd == "lab":
+            return _run_lab(args)
+        if args.cmd in ("import", "fit"):
+            return _run_import_fit(args)
     if args.cmd == "plot":
         from .plotting import plot_case
 

@@ -19,7 +19,8 @@ INT_RANGES = {
     "workers": (1, "parallel processes: an integer >= 1"),
     "seed": (0, f"seed: an integer 0 .. {SEED_MAX}"),
 }
-OUT_KINDS = {"fit": "folder", "lab": "folder", "discrepancy": "folder", "import": "file"}
+FILE_OUTPUT = ("import",)  # commands whose --out is a file; every other command's --out is a folder
+NO_LOCK = ("plot", "design")  # commands whose outputs are not locked (plots are rewritten file by file)
 
 
 class ArgumentError(UserError):
@@ -57,17 +58,17 @@ def check_args(args) -> None:
             check_int(name, v)
     if getattr(args, "current", None) is not None:
         check_current(args.current, getattr(args, "design", None) or "conf/design/baseline.yaml")
-    kind = OUT_KINDS.get(getattr(args, "cmd", None))
-    if kind is not None and getattr(args, "out", None) is not None:
-        check_out_dir(args.out, "--out", file=kind == "file")
-        if kind == "file" and Path(args.out).suffix != ".parquet":
+    cmd = getattr(args, "cmd", None)
+    if cmd not in NO_LOCK and getattr(args, "out", None) is not None:
+        check_out_dir(args.out, "--out", file=cmd in FILE_OUTPUT)
+        if cmd in FILE_OUTPUT and Path(args.out).suffix != ".parquet":
             raise ArgumentError(f"--out {args.out}: expected a .parquet file")
 
 
 @contextlib.contextmanager
 def output_lock(args):
-    """The lock of the command's output (fit, lab, import, discrepancy) while it runs."""
-    if getattr(args, "cmd", None) not in ("fit", "lab", "import", "discrepancy") or getattr(args, "out", None) is None:
+    """The lock of the command's output (fit, import, discrepancy, the laboratory) while it runs."""
+    if getattr(args, "cmd", None) in NO_LOCK or getattr(args, "out", None) is None:
         yield None
         return
     from .io import out_lock
