@@ -207,28 +207,41 @@ NONPOS = Range(hi=0.0, hi_incl=True)               # <= 0
 COEF = Range(0.0, 1.0, hi_incl=True)               # discharge coefficient, 0 < Cq <= 1
 TEMPERATURE = Range(200.0, 500.0, True, True)      # K (a value in degC is caught)
 
+
+def upto(hi: float, zero: bool = False) -> Range:
+    """A positive (``zero``: non-negative) value at most ``hi`` [SI]: the upper physical limit of a damper part."""
+    return Range(0.0, hi, zero, True)
+
+
+# Upper limits of a road-vehicle damper's parts (SI), far above any real one yet far below a unit mix-up
+# (mm written as m, bar as Pa) or a runaway value: bores and discs <= 0.3 m, stroke lengths <= 2 m, valve
+# lifts <= 50 mm, flow areas <= 0.01 m^2 (100 cm^2), volumes <= 50 l, the rod <= 50 kg, a valve <= 1 kg,
+# pressures <= 1e8 Pa (1000 bar).
+DIAMETER, LENGTH, LIFT, AREA, VOLUME = upto(0.3), upto(2.0), upto(0.05), upto(0.01), upto(0.05)
+ROD_MASS, VALVE_MASS, PRESSURE = upto(50.0), upto(1.0), upto(1e8)
+
 _SHIM_RANGES = {
-    "D_d": POS, "D_i": POS, "Cq_max": COEF, "lambda_crit": POS, "A_bleed": NONNEG, "Cq_bleed": COEF,
-    "A_slot": POS, "Cq_slot": COEF, "m_v": POS, "c_v": NONNEG, "sigma0": NONNEG, "F_c": POS, "alpha": POS,
+    "D_d": DIAMETER, "D_i": DIAMETER, "Cq_max": COEF, "lambda_crit": POS, "A_bleed": upto(0.01, zero=True),
+    "Cq_bleed": COEF, "A_slot": AREA, "Cq_slot": COEF, "m_v": VALVE_MASS, "c_v": NONNEG, "sigma0": NONNEG, "F_c": POS, "alpha": POS,
     "F_preload": NONNEG, "a": NONNEG, "b": NONNEG, "c": NONPOS, "d": NONPOS,
 }
 _INTAKE_RANGES = {
-    "D_d": POS, "D_i": POS, "D_c": POS, "D_h": POS, "Cq_max": COEF, "lambda_crit": POS, "A_slot": POS,
-    "Cq_slot": COEF, "m_v": POS, "c_v": NONNEG, "F_preload": NONNEG, "a": NONNEG, "b": NONNEG, "c": NONPOS,
-    "d": NONPOS, "x_v0": POS,
+    "D_d": DIAMETER, "D_i": DIAMETER, "D_c": DIAMETER, "D_h": DIAMETER, "Cq_max": COEF, "lambda_crit": POS,
+    "A_slot": AREA, "Cq_slot": COEF, "m_v": VALVE_MASS, "c_v": NONNEG, "F_preload": NONNEG, "a": NONNEG,
+    "b": NONNEG, "c": NONPOS, "d": NONPOS, "x_v0": LIFT,
 }
 
 # Every scalar parameter ("group.name") and constant ("constants.NAME") with
 # its physical range. Stated once: the loader checks values and C bounds here.
 RANGES: dict[str, Range] = {
-    "geometry.M_rod": POS, "geometry.D_PT": POS, "geometry.D_R": POS, "geometry.V_b": POS,
-    "geometry.l_c0": POS, "geometry.l_r0": POS,
+    "geometry.M_rod": ROD_MASS, "geometry.D_PT": DIAMETER, "geometry.D_R": DIAMETER, "geometry.V_b": VOLUME,
+    "geometry.l_c0": LENGTH, "geometry.l_r0": LENGTH,
     "oil.K_oil": Range(1e7, 1e11, True, True),      # Pa: mineral oils ~1.5e9; 1 Pa is nonsense
     "oil.rho_oil": Range(100.0, 5000.0, True, True),
-    "oil.nu": POS, "oil.P_sat": POS, "oil.P_vap": POS, "oil.chi": Range(0.0, 1.0, lo_incl=True),
-    "oil.Gamma": Range(1.0, 2.0, True, True), "oil.P_0": POS, "oil.T": TEMPERATURE,
-    "third_tube.E": Range(1e7, lo_incl=True), "third_tube.nu_p": Range(0.0, 0.5),
-    "third_tube.r_o": POS, "third_tube.r_i": POS,
+    "oil.nu": POS, "oil.P_sat": PRESSURE, "oil.P_vap": PRESSURE, "oil.chi": Range(0.0, 1.0, lo_incl=True),
+    "oil.Gamma": Range(1.0, 2.0, True, True), "oil.P_0": PRESSURE, "oil.T": TEMPERATURE,
+    "third_tube.E": Range(1e7, 1.2e12, True, True), "third_tube.nu_p": Range(0.0, 0.5),
+    "third_tube.r_o": DIAMETER, "third_tube.r_i": DIAMETER,
     "top_mount.R": POS, "top_mount.p0": POS, "top_mount.p1": Range(), "top_mount.p2": POS,
     "top_mount.q0": POS, "top_mount.q1": Range(), "top_mount.q2": POS,
     "top_mount.k0": NONNEG, "top_mount.k1": POS, "top_mount.k2": POS,
@@ -236,14 +249,15 @@ RANGES: dict[str, Range] = {
     **{f"{g}.{n}": r for g in ("piston_rebound", "base_compression") for n, r in _SHIM_RANGES.items()},
     **{f"{g}.{n}": r for g in ("piston_intake", "base_intake") for n, r in _INTAKE_RANGES.items()},
     "rod_friction.F_c": NONNEG, "rod_friction.F_s": NONNEG, "rod_friction.k_b": POS,
-    "constants.P_atm": POS, "constants.P_ref": POS, "constants.T_ref": TEMPERATURE, "constants.rho_gas": POS,
-    "constants.V_gas0": POS, "constants.pt_r_i": POS, "constants.pt_r_o": POS,
-    "constants.wall_ratio_third_tube": POS, "constants.A_bypass": NONNEG, "constants.Cq_bypass": COEF, "constants.p_transition": POS,
+    "constants.P_atm": PRESSURE, "constants.P_ref": PRESSURE, "constants.T_ref": TEMPERATURE, "constants.rho_gas": POS,
+    "constants.V_gas0": VOLUME, "constants.pt_r_i": DIAMETER, "constants.pt_r_o": DIAMETER,
+    "constants.wall_ratio_third_tube": POS, "constants.A_bypass": upto(0.01, zero=True), "constants.Cq_bypass": COEF,
+    "constants.p_transition": PRESSURE,
     "constants.zeta": Range(0.0, 3.141592653589793), "constants.k_contact": POS,
-    "constants.zeta_contact": NONNEG, "constants.delta_contact": POS,
-    **{f"constants.x_max_{v}": POS for v in VALVES},
+    "constants.zeta_contact": NONNEG, "constants.delta_contact": LIFT,
+    **{f"constants.x_max_{v}": LIFT for v in VALVES},
     "constants.s2": NONNEG, "constants.c_comp": NONNEG, "constants.vd": POS, "constants.a_s": POS,
-    "constants.alpha_s": POS, "constants.y_unit": POS, "constants.w_unit": POS,
+    "constants.alpha_s": POS, "constants.y_unit": LIFT, "constants.w_unit": POS,
 }
 
 # Ordered pairs: (smaller, larger, strict, why) — value(smaller) < value(larger).
@@ -265,23 +279,23 @@ POSITIVE_SUMS: tuple[tuple[tuple[str, ...], str], ...] = (
 
 
 EFFECT_PARAMETERS.update({
-    "piston_leakage.gap": ("m", POS),
-    "piston_leakage.length": ("m", POS),
+    "piston_leakage.gap": ("m", LIFT),
+    "piston_leakage.length": ("m", LENGTH),
     "active_valve_lag.tau": ("s", POS),
     "aeration.alpha0": ("-", Range(0.0, 0.5, True, True)),
     "aeration.n": ("-", Range(1.0, 1.4, True, True)),
     "valve_friction_current.F0": ("N", NONNEG),
     "valve_friction_current.k_I": ("N/A", NONNEG),
-    "valve_friction_current.A_spool": ("m^2", POS),
-    "valve_friction_current.dp_reg": ("Pa", POS),
+    "valve_friction_current.A_spool": ("m^2", AREA),
+    "valve_friction_current.dp_reg": ("Pa", PRESSURE),
     "oil_thermal.C_th": ("J/K", POS),
     "oil_thermal.hA": ("W/K", NONNEG),
     "oil_thermal.b_nu": ("1/K", NONNEG),
     "oil_thermal.c_K": ("1/K", Range(0.0, 0.02, True, True)),
     "rod_friction_asymmetric.a": ("-", Range(-0.95, 0.95, True, True)),
     "rod_friction_asymmetric.v_reg": ("m/s", POS),
-    "top_mount_backlash.delta": ("m", NONNEG),
-    "top_mount_backlash.eps": ("m", POS),
+    "top_mount_backlash.delta": ("m", upto(0.05, zero=True)),
+    "top_mount_backlash.eps": ("m", LIFT),
     "seal_friction_pressure.k_p": ("N/Pa", NONNEG),
-    "seal_friction_pressure.p_reg": ("Pa", POS),
+    "seal_friction_pressure.p_reg": ("Pa", PRESSURE),
 })
