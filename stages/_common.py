@@ -66,6 +66,15 @@ def staged_dir(out: Path):
             shutil.rmtree(tmp, ignore_errors=True)
 
 
+def final_name(folder: Path) -> str:
+    """The name a folder has once :func:`staged_dir` swaps it in (``.NAME.tmpXXXX`` -> ``NAME``): outputs
+    written inside the temporary folder never carry its random name (same input, same bytes)."""
+    import re
+
+    m = re.fullmatch(r"\.(.+)\.tmp[^.]*", folder.name)
+    return m.group(1) if m else folder.name
+
+
 def design_values(best: dict) -> dict:
     """A fit's values without its nuisance parameters (``sensor.*``: the
     measurement chain, never design overrides)."""
@@ -169,4 +178,4 @@ def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dic
                                       **(extra or {})})
     write_json(out / "uncertainty.json", {**unc, "objective": meta.get("objective")})
     write_text(out / "uncertainty.md", (md or "No uncertainty analysis (no polish configured).")
-               .replace("# Identifiability and uncertainty", f"# Identifiability and uncertainty: {out.name}") + "\n")
+               .replace("# Identifiability and uncertainty", f"# Identifiability and uncertainty: {final_name(out)}") + "\n")

@@ -253,6 +253,36 @@ def check_sample(sample: dict, nominal: Design) -> None:
         raise LabError(f"{where}: the real part is not a valid design: {e}") from None
 
 
+RECORDED = {"valve": ("flow [m^3/s]", "dp [Pa]"), "damper": ("displacement [m]", "force [N]", TEMPERATURE),
+            "topmount": ("displacement [m]", "force [N]"),
+            "module": ("displacement [m]", "force [N]", "rod acceleration [m/s^2]")}
+
+
+def check_corners(sample: dict, protocols: dict) -> None:
+    """Every transducer corner of the sample's benches at most the Nyquist
+    frequency (rate / 2) of the fastest test recording its channel: a corner
+    above it would never act on a record (the lab skips such a filter), so the
+    sample would not describe the bench it claims. LabError naming file and key."""
+    fastest: dict[str, tuple[float, str]] = {}
+    for name, pc in protocols.items():
+        for r in build_runs(pc, 0):
+            for ch in RECORDED.get(r.configuration, ()):
+                if r.rate > fastest.get(ch, (0.0, ""))[0]:
+                    fastest[ch] = (float(r.rate), name)
+    bad = []
+    for key, spec in _sensor_specs(sample["benches"]).items():
+        corner = spec.get("corner") if spec.get("filter", "none") != "none" else None
+        if corner is None or key not in fastest:
+            continue
+        rate, test = fastest[key]
+        if not corner <= rate / 2:
+            sect = "sensors" if key in sample["benches"].get("sensors", {}) else "bandwidth"
+            bad.append(f"benches.{sect}.{key}{'.corner' if sect == 'sensors' else ''}: {corner:g} Hz above "
+                       f"the Nyquist frequency {rate / 2:g} Hz of the fastest test recording it ({test}, {rate:g} Hz)")
+    if bad:
+        raise LabError(f"{sample.get('_path', '<sample>')}: " + "; ".join(bad))
+
+
 def _seed(root: int, sample: dict, *names: str) -> int:
     return int(root + sample["seed_offset"] + zlib.crc32("/".join(names).encode())) % (2**32)
 
@@ -445,6 +475,7 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
         raise LabError(f"{sample}: nominal design {nominal_path}: {e}") from None
     check_sample(sample_doc, nominal)
     protocols = load_all(conf / "test")
+    check_corners(sample_doc, protocols)
     items = plan(conf, protocols) if only is None else list(only)
     if tests is not None:
         known = sorted({t for t, _ in items})

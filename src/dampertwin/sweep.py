@@ -85,7 +85,9 @@ def _level(cfg: DictConfig) -> float:
 
 
 def job_name(cfg: DictConfig) -> str:
-    name = str(cfg.variant.case)
+    v = cfg.get("variant")
+    case = v.get("case") if isinstance(v, DictConfig) else None
+    name = str(case) if isinstance(case, str) and case else "invalid_variant"
     if cfg.get("factor"):
         try:
             name += f"__{cfg.factor}@{_level(cfg):+.0%}"
@@ -131,6 +133,34 @@ def design_for(cfg: DictConfig, root: Path | None = None) -> Design:
     return d
 
 
+def variant_file(cfg: DictConfig, root: Path) -> Path:
+    """The conf/variant file Hydra composed ``cfg.variant`` from (its choice), for error messages."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        choice = HydraConfig.get().runtime.choices.get("variant")
+    except (ImportError, ValueError):
+        choice = None
+    v = cfg.get("variant")
+    choice = choice or (v.get("case") if isinstance(v, DictConfig) else None) or "?"
+    return root / "conf" / "variant" / f"{choice}.yaml"
+
+
+def check_job(cfg: DictConfig, root: Path) -> None:
+    """The composed variant (keys, row, current) and the seed, before any work:
+    a UserError naming the variant file and key, never a raw omegaconf message."""
+    from .variants import variant_errors
+
+    path = variant_file(cfg, root)
+    v = cfg.get("variant")
+    errors = variant_errors(OmegaConf.to_container(v, resolve=True) if isinstance(v, DictConfig) else v, path)
+    seed = cfg.get("seed")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        errors.append(f"seed={seed!r}: expected an integer 0 .. {2**32 - 1}")
+    if errors:
+        raise UserError(errors)
+
+
 def sweep_dir(cfg: DictConfig, root: Path | None = None) -> Path:
     """results_dir/<sweep> (results_dir relative to the project root unless absolute)."""
     return _root(cfg, root) / cfg.results_dir / cfg.sweep
@@ -152,6 +182,7 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
     try:
         if cfg.get("fail_on") and cfg.fail_on == name:  # deliberate failure, for tests of the sweep machinery
             raise RuntimeError(f"deliberate failure of {name} (fail_on)")
+        check_job(cfg, root)
         d = design_for(cfg, root)
         check_current(cfg.variant.current, d, str(root / "conf" / "variant" / f"{cfg.variant.case}.yaml"))
         resolved = OmegaConf.to_container(cfg, resolve=True)

@@ -47,35 +47,51 @@ class Variant:
         return d
 
 
+TABLE_ROWS = 10  # thesis table 6.5 has rows 1..10 (a variant's ``row``)
+
+
+def variant_errors(doc, path) -> list[str]:
+    """Every problem of a variant document (keys, case, row, title, current,
+    overrides), each naming ``path`` and the key."""
+    import difflib
+
+    if not isinstance(doc, dict):
+        return [f"{path}: expected a mapping with keys {', '.join(VARIANT_KEYS)}"]
+    errors = []
+    for k in VARIANT_KEYS:
+        if k not in doc:
+            errors.append(f"{path}: missing key {k!r}")
+    for k in doc:
+        if k not in VARIANT_KEYS:
+            near = difflib.get_close_matches(str(k), VARIANT_KEYS, n=1)
+            errors.append(f"{path}: unknown key {k!r}" + (f" (did you mean {near[0]!r}?)" if near else "")
+                          + f"; expected {', '.join(VARIANT_KEYS)}")
+    cur = doc.get("current")
+    if "current" in doc and (not isinstance(cur, (int, float)) or isinstance(cur, bool) or not math.isfinite(cur)
+                             or not cur > 0):
+        errors.append(f"{path}: current {cur!r}; expected a positive finite number in A")
+    row = doc.get("row")
+    if "row" in doc and (not isinstance(row, int) or isinstance(row, bool) or not 1 <= row <= TABLE_ROWS):
+        errors.append(f"{path}: row {row!r}; expected an integer 1..{TABLE_ROWS} (the row of thesis table 6.5)")
+    for k in ("case", "title"):
+        if k in doc and (not isinstance(doc[k], str) or not doc[k]):
+            errors.append(f"{path}: {k} {doc[k]!r}; expected a non-empty string")
+    if not isinstance(doc.get("overrides", {}), (dict, type(None))):
+        errors.append(f"{path}: overrides must be a mapping of parameter -> value")
+    return errors
+
+
 def load_variant(path: str | Path) -> Variant:
     path = Path(path)
     try:
         doc = yaml_load_file(path)
     except ConfigTextError as e:
         raise VariantError(str(e)) from None
-    errors = []
-    if not isinstance(doc, dict):
-        raise VariantError(f"{path}: expected a mapping with keys {', '.join(VARIANT_KEYS)}")
-    for k in VARIANT_KEYS:
-        if k not in doc:
-            errors.append(f"{path}: missing key {k!r}")
-    for k in doc:
-        if k not in VARIANT_KEYS:
-            errors.append(f"{path}: unknown key {k!r}; expected {', '.join(VARIANT_KEYS)}")
-    cur = doc.get("current")
-    if not isinstance(cur, (int, float)) or isinstance(cur, bool) or not math.isfinite(cur) or not cur > 0:
-        errors.append(f"{path}: current {cur!r}; expected a positive finite number in A")
-    row = doc.get("row")
-    if "row" in doc and (not isinstance(row, int) or isinstance(row, bool) or row < 1):
-        errors.append(f"{path}: row {row!r}; expected a positive integer (the row of thesis table 6.5)")
-    for k in ("case", "title"):
-        if k in doc and (not isinstance(doc[k], str) or not doc[k]):
-            errors.append(f"{path}: {k} {doc[k]!r}; expected a non-empty string")
-    if not isinstance(doc.get("overrides", {}), (dict, type(None))):
-        errors.append(f"{path}: overrides must be a mapping of parameter -> value")
+    errors = variant_errors(doc, path)
     if errors:
         raise VariantError(errors)
-    return Variant(doc["case"], row, doc["title"], float(cur), dict(doc["overrides"] or {}), str(path))
+    return Variant(doc["case"], doc["row"], doc["title"], float(doc["current"]), dict(doc["overrides"] or {}),
+                   str(path))
 
 
 def load_variants(folder: str | Path) -> list[Variant]:
