@@ -38,7 +38,10 @@ PLAUSIBLE_FACTOR = 30.0  # a channel's peak may lie up to this factor above / be
 # physical range of a channel's peak |value| (SI) in any damper, top-mount or valve test; None: not bounded
 PEAK_RANGE = {"displacement": (None, 1.0), "force": (1.0, 1.0e6), "dp": (1.0e4, 1.0e8), "flow": (None, 0.1),
               "rod acceleration": (None, 1.0e5), "velocity": (None, 100.0), "current": (None, 10.0)}
-GENERIC_RATE = (20.0, 2.0e6)  # [Hz] sampling rate of a record read without a protocol
+# a typical peak of each quantity (SI), only to name the likely unit of a value outside PEAK_RANGE
+TYPICAL = {"displacement": 5e-3, "force": 1e3, "dp": 2e6, "flow": 1e-3, "rod acceleration": 100.0, "velocity": 0.5,
+           "current": 1.0}
+GENERIC_RATE = (100.0, 2.0e6)  # [Hz] sampling rate of a record read without a protocol (bench rigs record at >= 200 Hz)
 SIGN_TOL = 0.05  # a record generating more than this fraction of its |F v| energy has a flipped sign
 # common non-SI units a number may have been written in, per SI unit: (unit, factor to SI)
 MIXUPS = {
@@ -210,10 +213,10 @@ def _magnitude_errors(g: pd.DataFrame, label: str, targets: dict, path: str) -> 
         lo, hi = PEAK_RANGE.get(q, (None, None))
         if hi is not None and peak > hi:
             errors.append(f"{label}: column {col!r}: peak {peak:.4g} {si} above the physical {hi:g} {si} of a damper "
-                          f"test: {mixup(peak / hi, si)}")
+                          f"test: {mixup(peak / TYPICAL[q], si)}")
         elif lo is not None and 0 < peak < lo:
             errors.append(f"{label}: column {col!r}: peak {peak:.4g} {si} below the {lo:g} {si} of a damper test: "
-                          f"{mixup(peak / lo, si)}")
+                          f"{mixup(peak / TYPICAL[q], si)}")
     return errors
 
 
