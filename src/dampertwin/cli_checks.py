@@ -48,6 +48,29 @@ def check_current(value, design_path) -> None:
         raise ArgumentError(f"--current {value!r}: outside the active-valve map [{lo:g}, {hi:g}] A of {design_path}")
 
 
+# the test whose records each `fit` submodel reads (friction: also a device record without protocol)
+FIT_PROTOCOLS = {"valve": ("flowbench",), "compliance": ("compliance",), "topmount": ("topmount",),
+                 "friction": ("friction", None)}
+
+
+def check_fit_records(submodel: str, paths) -> None:
+    """A record whose metadata names another test than the submodel's is refused
+    (a compliance or friction record given to a top-mount fit, ...)."""
+    from .io import read_meta
+
+    want = FIT_PROTOCOLS.get(submodel)
+    for p in paths:
+        if want is None or not str(p).endswith(".parquet") or not Path(p).is_file():
+            continue  # the reader names a missing or unreadable file
+        try:
+            proto = read_meta(p).get("protocol")
+        except Exception:  # unreadable: the reader reports it
+            continue
+        if isinstance(proto, str) and proto not in want:
+            raise ArgumentError(f"{p}: a {proto} record (its metadata); a {submodel} fit reads "
+                                f"{' or '.join(w for w in want if w)} records")
+
+
 def check_args(args) -> None:
     """Range-check the parsed arguments of any subcommand (absent options pass)."""
     from .io import check_out_dir
@@ -59,6 +82,8 @@ def check_args(args) -> None:
     if getattr(args, "current", None) is not None:
         check_current(args.current, getattr(args, "design", None) or "conf/design/baseline.yaml")
     cmd = getattr(args, "cmd", None)
+    if cmd == "fit":
+        check_fit_records(args.submodel, [args.data, *(args.predict or [])])
     if cmd not in NO_LOCK and getattr(args, "out", None) is not None:
         check_out_dir(args.out, "--out", file=cmd in FILE_OUTPUT)
         if cmd in FILE_OUTPUT and Path(args.out).suffix != ".parquet":
