@@ -166,6 +166,24 @@ def test_fit_arguments_are_range_checked_before_any_work(tmp_path, capsys, argv,
     assert not out.exists() and not lock_path(out).exists()
 
 
+def test_fit_bounds_file_with_a_duplicate_key_is_one_line(tmp_path, capsys):
+    b = tmp_path / "b.yaml"
+    b.write_text("parameters:\n  - {name: F_c, bounds: [0, 1]}\nparameters: []\n")
+    assert main(["fit", "friction", "--data", "x.parquet", "--bounds", str(b), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "b.yaml: not valid YAML: line 3" in err and "duplicate key 'parameters'" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("submodel", ["topmount", "valve", "compliance"])
+def test_fit_refuses_a_record_of_another_test(tmp_path, capsys, submodel):
+    """A friction record (metadata protocol friction) given to another submodel's fit, before any work."""
+    rec = write_frame(tmp_path / "fr.parquet", fric(), {"protocol": "friction", "synthetic": True})
+    out = tmp_path / "o"
+    assert main(["fit", submodel, "--valve", "piston_rebound", "--data", str(rec), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"a friction record (its metadata); a {submodel} fit reads" in err and not out.exists(), err
+
+
 @pytest.mark.parametrize("cmd", [["lab", "--sample", "conf/lab/sample.yaml"],
                                  ["discrepancy", "--design", "d.yaml", "--measured", "m"]])
 @pytest.mark.parametrize("opt", [["--workers", "0"], ["--seed", "-5"]])

@@ -84,6 +84,11 @@ def check_args(args) -> None:
     cmd = getattr(args, "cmd", None)
     if cmd == "fit":
         check_fit_records(args.submodel, [args.data, *(args.predict or [])])
+        if getattr(args, "bounds", None):  # readable YAML without duplicate keys, a mapping
+            from .design import yaml_load_file
+
+            if not isinstance(yaml_load_file(args.bounds), dict):
+                raise ArgumentError(f"--bounds {args.bounds}: expected a mapping with a 'parameters:' list")
     if cmd not in NO_LOCK and getattr(args, "out", None) is not None:
         check_out_dir(args.out, "--out", file=cmd in FILE_OUTPUT)
         if cmd in FILE_OUTPUT and Path(args.out).suffix != ".parquet":
