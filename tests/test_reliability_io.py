@@ -157,6 +157,7 @@ def _cli(*argv):
     (["--generations", "-3"], "--generations -3"), (["--generations", "0"], "--generations 0"),
     (["--seed", "-1"], "--seed -1"), (["--current", "nan"], "--current nan"),
     (["--current", "99"], "--current 99.0: outside the active-valve map"),
+    (["--valve", "piston_rebond"], "--valve 'piston_rebond': expected one of piston_rebound"),
 ])
 def test_fit_arguments_are_range_checked_before_any_work(tmp_path, capsys, argv, needle):
     out = tmp_path / "o"

@@ -83,6 +83,10 @@ def check_args(args) -> None:
         check_current(args.current, getattr(args, "design", None) or "conf/design/baseline.yaml")
     cmd = getattr(args, "cmd", None)
     if cmd == "fit":
+        from .design.schema import VALVES
+
+        if getattr(args, "valve", None) is not None and args.valve not in VALVES:
+            raise ArgumentError(f"--valve {args.valve!r}: expected one of {', '.join(VALVES)}")
         check_fit_records(args.submodel, [args.data, *(args.predict or [])])
         if getattr(args, "bounds", None):  # readable YAML without duplicate keys, a mapping
             from .design import yaml_load_file
