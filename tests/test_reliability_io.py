@@ -332,6 +332,18 @@ def test_lab_sensor_corner_above_nyquist_is_refused(where, corner):
         check_corners(s, protocols)
 
 
+def test_lab_channel_described_twice_is_refused(tmp_path):
+    import yaml
+
+    from dampertwin.lab import LabError, load_sample
+
+    doc = yaml.safe_load((CONF / "lab" / "sample.yaml").read_text())
+    doc["benches"]["bandwidth"] = {"flow [m^3/s]": 1e9}  # the sensors section would silently win
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(LabError, match=re.escape("benches.bandwidth.flow [m^3/s] and benches.sensors.flow [m^3/s] both")):
+        load_sample(tmp_path / "s.yaml")
+
+
 def _variant_cfg(**kw):
     doc = {"case": "x", "row": 1, "title": "t", "current": 1.6, "overrides": {}}
     doc.update(kw)

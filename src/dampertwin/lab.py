@@ -187,6 +187,8 @@ def _check_benches(b: dict) -> list[str]:
                 bad.append(f"benches.{sect}.{ch}: unknown channel; expected {', '.join(CHANNELS)}")
             elif not (_finite(v) and v >= (0 if sect == "noise" else 1e-300)):
                 bad.append(f"benches.{sect}.{ch}: {v!r}; expected a {'non-negative' if sect == 'noise' else 'positive'} number")
+    for ch in set(b.get("bandwidth", {})) & set(b.get("sensors", {})):
+        bad.append(f"benches.bandwidth.{ch} and benches.sensors.{ch} both describe the channel; expected one")
     for ch, spec in b.get("sensors", {}).items():
         where = f"benches.sensors.{ch}"
         if ch not in CHANNELS:
