@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 
 from . import report
 from .design import load as load_design
-from .io import read_frame, runs
+from .io import read_record, runs
 from .protocols import build_runs, flow_bench, load_all
 from .variants import VALVE_DESIGNS, load_variant
 
@@ -20,7 +20,8 @@ CURVING_VELOCITIES = (0.1, 0.3, 0.5, 1.0, 1.5)  # subset of the protocol, for sp
 
 
 def _maybe(path: Path | None, protocol: str):
-    return read_frame(path, protocol)[0] if path is not None and path.is_file() else None
+    """A measured record to overlay, through the one measurement reader (same checks as fit and the stages)."""
+    return read_record(path, protocol)[0] if path is not None and path.is_file() else None
 
 
 def _p(data: Path | None, *parts: str) -> Path | None:
