@@ -91,6 +91,8 @@ READER_CASES = {
     "dead displacement": (lambda: mono().assign(**{"displacement [m]": 0.001}), "monosine", "'displacement [m]' is constant"),
     "all-zero force": (lambda: mono().assign(**{"force [N]": 0.0}), "monosine", "'force [N]' is constant (0.0)"),
     "mm under [m]": (lambda: _scaled(mono(), "displacement [m]", 1e3), "monosine", "values in mm under a [m] header"),
+    "cm under [m]": (lambda: _scaled(mono(), "displacement [m]", 1e2), "monosine",  # 0.5 m: physical, 100x the protocol's
+                     "is 100x the protocol's 0.005 m"),
     "ms under [s]": (lambda: _scaled(mono(), "time [s]", 1e3), "monosine", "time in ms under a [s] header"),
     "0.1 s record": (lambda: mono(T=0.1), "monosine", "record lasts 0.1 s"),
     "flipped force": (lambda: _scaled(mono(), "force [N]", -1.0), "monosine", "force sign flipped"),
