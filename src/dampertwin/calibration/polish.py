@@ -129,7 +129,7 @@ def polish(records: Records, specs: list[ParamSpec], res: FitResult, settings: P
     other end point inside the best's joint 95 % confidence region widens
     the uncertainty report (:func:`uncertainty.other_optima`)."""
     from scipy.optimize import least_squares
-    from tqdm import tqdm
+    from ..progress import progress as tqdm
 
     w = records.weights
 
