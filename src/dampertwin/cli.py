@@ -128,12 +128,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _main(argv: list[str]) -> int:
     ap = build_parser()
-    if argv and argv[0] == "sweep":  # Hydra parses its own options (-m, --cfg, --help, ...)
-        swp = ap._subparsers._group_actions[0].choices["sweep"]
-        args, rest = swp.parse_known_args(argv[1:])
+    if argv and argv[0] == "sweep":  # Hydra parses its own options (-m, --cfg, --help, ...), in order
+        rest, root = list(argv[1:]), None
+        if "--root" in rest:
+            i = rest.index("--root")
+            if i + 1 >= len(rest):
+                raise UserError("sweep: argument --root: expected one argument (a project folder)")
+            root = rest[i + 1]
+            del rest[i:i + 2]
         from .sweep import multirun
 
-        return multirun([*args.overrides, *rest], root=args.root)
+        return multirun(rest, root=root)
     args = ap.parse_args(argv)
     if args.cmd == "discrepancy":
         return _run_discrepancy(args)

@@ -340,8 +340,10 @@ def multirun(overrides: list[str], root: str | Path | None = None) -> int:
     import hydra
 
     root = project_root(root)
-    argv = list(overrides)
-    if not any(a in ("-m", "--multirun") for a in argv) and not any(a.startswith("--") for a in argv):
+    # Hydra takes its options before the overrides: -m first, then the overrides in the user's order
+    info = any(a in ("-h", "--help", "--hydra-help", "--info", "--cfg", "-c") for a in overrides)
+    argv = [a for a in overrides if a not in ("-m", "--multirun")]
+    if not info:
         argv.insert(0, "-m")
     if not any(a.startswith("root=") for a in argv):
         argv.append(f"root='{root}'" if "'" not in str(root) else f'root="{root}"')
