@@ -6,6 +6,7 @@ replaces it with the Markdown that ``GENERATORS[NAME]()`` returns:
 - ``cli``: every subcommand's ``--help``, from ``dampertwin.cli.build_parser``;
 - ``design-schema``: the design YAML schema, from ``dampertwin.design.schema``;
 - ``config-groups``: every configuration group of ``conf/`` with its options;
+- ``effects-table``: the effect library (``dampertwin.model.params.effects_table``);
 - ``validation-approach1`` / ``validation-approach2``: the committed metrics and tables.
 
 Registered in mkdocs.yml (``hooks:``); ``python scripts/mkdocs_hooks.py NAME`` prints one.
@@ -171,7 +172,14 @@ def validation_approach2() -> str:
     return "\n".join(out)
 
 
-GENERATORS = {"cli": cli, "design-schema": design_schema, "config-groups": config_groups,
+def effects_table() -> str:
+    from dampertwin.design import load
+    from dampertwin.model.params import effects_table as table
+
+    return table(load(ROOT / "conf" / "design" / "baseline.yaml"))
+
+
+GENERATORS = {"effects-table": effects_table, "cli": cli, "design-schema": design_schema, "config-groups": config_groups,
               "validation-approach1": validation_approach1, "validation-approach2": validation_approach2}
 
 
