@@ -59,6 +59,7 @@ USER_ERRORS = {
                                     "--out", "{tmp}/d"],
     "sweep, not a project": ["sweep", "--root", "{tmp}", "variant=baseline_1.6"],
     "sweep, --root without folder": ["sweep", "--root"],
+    "sweep, unknown override (Hydra)": ["sweep", "--root", str(ROOT), "nokey=1", "results_dir={tmp}/s"],
 }
 
 

@@ -355,10 +355,24 @@ def multirun(overrides: list[str], root: str | Path | None = None) -> int:
     def app(cfg: DictConfig) -> None:
         run_variant(cfg)
 
+    # Hydra reports a bad override itself (several lines, exit 1): its stderr is held back and a
+    # failure before any job becomes one UserError line (exit 2); otherwise it is passed on unchanged
+    import contextlib
+    import io
+
+    held = io.StringIO()
     try:
-        app()
+        with contextlib.redirect_stderr(held):
+            app()
+    except SystemExit as e:
+        if e.code in (0, None):
+            raise
+        lines = [ln.strip() for ln in held.getvalue().splitlines()
+                 if ln.strip() and "HYDRA_FULL_ERROR" not in ln]
+        raise UserError("sweep: " + ("; ".join(lines) or f"Hydra exited with {e.code}")) from None
     finally:
         sys.argv = saved
+        sys.stderr.write(held.getvalue() if not sys.exc_info()[0] else "")
     from dampertwin import sweep as this  # the callback's module (this file may run as __main__)
 
     if this._OUTCOME["all_failed"]:
