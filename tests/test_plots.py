@@ -65,4 +65,5 @@ def test_discrepancy_overlay_draws_the_measured_curve_on_top(tmp_path, monkeypat
     ax = captured[0].get_axes()[0]
     by_label = {ln.get_label(): ln for ln in ax.lines}
     assert by_label["measured"].get_zorder() > max(by_label["after"].get_zorder(), by_label["before"].get_zorder())
-    assert by_label["measured"].get_linestyle() != by_label["after"].get_linestyle()
+    meas, after = by_label["measured"], by_label["after"]
+    assert meas.get_color() != after.get_color() and meas.get_linewidth() < after.get_linewidth()
