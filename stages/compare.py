@@ -1,13 +1,13 @@
 """DVC stage `compare`: thesis tables 6.5 (mono-sine rod acceleration peaks)
 and 6.6 (random-test PSD at 200 / 300 Hz) for the ten design cases,
 simulated (calibrated model) vs measured; metrics.json for `dvc metrics`,
-plot data for `dvc plots`, PNG overlays per case."""
+plot data for `dvc plots` (+ the static plots/kpi_scatter.png and plots/index.html),
+PNG overlays per case, the study report."""
 
 import json
 
 import matplotlib.pyplot as plt
 import numpy as np
-import pandas as pd
 
 from _common import CONF, OUT, config, config_hash, read_overlay, write_json, write_text, measured_dir, params
 from dampertwin import kpi, report
@@ -15,7 +15,7 @@ from dampertwin.design import yaml_load
 from dampertwin.io import read_frame, read_record, runs, write_frame
 from dampertwin.protocols import load_protocol
 from dampertwin.calibration.uncertainty import summary
-from dampertwin.study_report import build_report
+from dampertwin.study_report import build_report, kpi_points, plots_page, write_kpi_plots
 from dampertwin.variants import load_variants
 
 
@@ -24,7 +24,7 @@ def main() -> None:
     f_mono = load_protocol(CONF / "test" / "monosine.yaml")["frequency"]
     cmp_cfg = yaml_load((CONF / "compare.yaml").read_text())
     n_tr = int(cmp_cfg["transient_cycles"])
-    rows65, rows66, plot_rows = [], [], []
+    rows65, rows66, cases = [], [], []
     synthetic = False
     for v in load_variants(CONF / "variant"):
         sim_m = read_frame(OUT / "sim" / v.case / "monosine.parquet", "monosine")[0]
@@ -43,11 +43,7 @@ def main() -> None:
         ls, lm = kpi.psd_levels(sim_r), kpi.psd_levels(mea_r)
         rows66.append(dict(no=v.row, case=v.title, current=v.current, sim_200=ls["200 Hz [dB]"],
                            meas_200=lm["200 Hz [dB]"], sim_300=ls["300 Hz [dB]"], meas_300=lm["300 Hz [dB]"]))
-        for k, s_, m_ in (*((f"{h} {e} [g]", ps[f"{h} {e}"], pm[f"{h} {e}"])
-                            for h in kpi.HALVES for e in kpi.EXTREMES),
-                          ("PSD 200 Hz [dB]", ls["200 Hz [dB]"], lm["200 Hz [dB]"]),
-                          ("PSD 300 Hz [dB]", ls["300 Hz [dB]"], lm["300 Hz [dB]"])):
-            plot_rows.append({"case": v.case, "kpi": k, "simulated": s_, "measured": m_})
+        cases.append(v.case)
         pdir = OUT / "plots" / v.case
         pdir.mkdir(parents=True, exist_ok=True)
         fig = report.monosine_figure(runs(sim_m)[0][1], runs(mea_m)[0][1], f_mono,
@@ -97,20 +93,11 @@ def main() -> None:
         metrics[col] = {"mean_abs": float(a.mean()), "max_abs": float(a.max())}
     metrics["flags"] = {"count": len(flags), "thresholds": {k: float(v) for k, v in fl.items()}, "cells": flags}
     write_json(OUT / "metrics.json", metrics)
-    write_kpi_plot_data(pd.DataFrame(plot_rows))
+    write_kpi_plots(OUT, kpi_points(t65, t66, cases))
     write_json(OUT / "fits.json", fit_summary(cfg))
-    build_report(OUT, measured_label=f"{measured}" + (" (SYNTHETIC: the virtual laboratory)" if synthetic else ""))
-
-
-KPI_FAMILIES = {"kpi_peaks.csv": ("rebound peak [g]", "compression peak [g]"),
-                "kpi_psd.csv": ("PSD 200 Hz [dB]", "PSD 300 Hz [dB]")}
-
-
-def write_kpi_plot_data(rows: pd.DataFrame) -> None:
-    """One CSV per KPI family for `dvc plots` (simulated vs measured, y = x
-    reference and case names in the tooltips: .dvc/plots/kpi_scatter.json)."""
-    for name, kpis in KPI_FAMILIES.items():
-        rows[rows.kpi.isin(kpis)].to_csv(OUT / "plots" / name, index=False)
+    build_report(OUT, measured_label=f"{measured}" + (" (SYNTHETIC: the virtual laboratory)" if synthetic else ""),
+                 cases=cases)
+    plots_page(OUT)
 
 
 def fit_summary(cfg) -> dict:

@@ -1,6 +1,6 @@
 """DVC stage `sweep`: the table-6.5 OFAT sweep (ten design cases, calibrated
 designs of the approach-1 study) -> results/sweeps/study_table65/ with its summary.
-Same job function as `python -m dampertwin.sweep -m +ofat=table65`, composed
+Same job function as `dampertwin sweep +ofat=table65`, composed
 without @hydra.main; variants run in parallel on the local cores (joblib)."""
 
 from joblib import Parallel, delayed

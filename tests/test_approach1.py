@@ -163,7 +163,7 @@ def test_tables_and_plots_are_written(ci_study):
     assert (a1 / "table_6_5.md").read_text().startswith("Table 6.5")
     metrics = json.loads((a1 / "metrics.json").read_text())
     assert set(metrics) == {f"{h} {e} diff [%]" for h in ("Rebound", "Compression") for e in ("max", "min")} | {
-        "200 Hz diff [dB]", "300 Hz diff [dB]", "flags"}
+        "200 Hz diff [dB]", "300 Hz diff [dB]", "flags", "code_hash"}
     assert metrics["flags"]["count"] == len(metrics["flags"]["cells"])
     assert "Definition:" in (a1 / "table_6_5.md").read_text()
     for fit in ("valves/piston_rebound", "topmount/baseline", "compliance"):

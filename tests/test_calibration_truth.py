@@ -101,7 +101,7 @@ def test_top_mount_fit_reaches_the_truths_objective_and_finds_the_force_chain(la
     # optimum elsewhere, calibration.uncertainty.other_optima) with an interval
     # that covers the real one. (The intervals are statistical: within 15 %,
     # a bias they miss is allowed, e.g. k0 -9 % on lab 2 sample 1, interval
-    # [1.19e6, 1.23e6] against 1.32e6; README "What the intervals do not cover".)
+    # [1.19e6, 1.23e6] against 1.32e6; docs/validation/approach1.md "What the intervals do not cover".)
     rows = {p["parameter"]: p for p in res.uncertainty["parameters"]}
     for k in ("top_mount.k0", "top_mount.k1", "top_mount.c1"):
         r = rows[k]
@@ -118,7 +118,7 @@ def test_compliance_fit_reaches_the_truths_objective_and_finds_the_force_chain(l
     given the real valves (the valve fits are checked above): objective
     within 1.2x the truth's, the load cell's extra delay found (a delayed
     force looks like extra gas). chi and K_oil against the truth are
-    printed (what the 10 mm sine determines; README)."""
+    printed (what the 10 mm sine determines; docs/validation/approach1.md)."""
     sample, measured = lab
     real, _ = true_design(None, sample)
     d = load(ROOT / "conf" / "design" / "baseline.yaml")

@@ -3,6 +3,7 @@ parameters from a SYNTHETIC record (noise added), beats Coulomb + viscous,
 reports NRMSE per file and intervals; search bounds from the command line."""
 
 import json
+import re
 
 import numpy as np
 from scipy import stats
@@ -72,7 +73,7 @@ def test_fit_cli_friction_with_command_line_bounds(tmp_path, capsys):
     doc = json.loads((out / "fit.json").read_text())
     assert set(doc["parameters"]) == {"F_c", "F_s", "s2"} and doc["bounds"]["s2"][:2] == [0.0, 1000.0]
     assert doc["parameters"]["F_c"] == pytest.approx(20.0, rel=0.05)
-    assert main(["fit", "friction", "--data", str(rec), "--out", str(out), "--param", "mu=0:1"]) == 1
+    assert main(["fit", "friction", "--data", str(rec), "--out", str(out), "--param", "mu=0:1"]) == 2
     assert "unknown friction parameter" in capsys.readouterr().err
 
 
@@ -125,6 +126,11 @@ def test_study_report_flags_and_html(tmp_path):
     t65.loc[t65.index[1], cols[-1]] = -(lim - 0.5)
     t65.loc[t65.index[2], cols[1]] = lim + 0.5
     t65.to_parquet(tmp_path / "table_6_5.parquet")
+    import base64
+
+    png = b"\x89PNG\r\n\x1a\n" + b"0" * 32  # bytes to embed (content is not decoded)
+    (tmp_path / "plots" / "baseline_1.6").mkdir(parents=True)
+    (tmp_path / "plots" / "baseline_1.6" / "monosine.png").write_bytes(png)
     md, html = build_report(tmp_path, measured_label="test data", cases=["baseline_1.6"])
     text = md.read_text()
     n = len(fits["fits"][name]["values"])
@@ -137,7 +143,11 @@ def test_study_report_flags_and_html(tmp_path):
             assert (f"- {r['Design case']}: {c} = {float(r[c]):+.2f}" in text) == (abs(float(r[c])) > lim), (r, c)
     assert "![baseline_1.6 monosine](plots/baseline_1.6/monosine.png)" in text
     h = html.read_text()
-    assert "<table>" in h and "<img" in h
+    assert "<table>" in h
+    # self-contained: the PNG present is embedded, the absent one named, nothing links out
+    assert f'<img src="data:image/png;base64,{base64.b64encode(png).decode()}"' in h
+    assert "image not available: plots/baseline_1.6/psd.png" in h
+    assert not re.search(r'<img src="(?!data:)', h)
 
 
 def test_fit_cli_valve_reports_nrmse_and_intervals(tmp_path):

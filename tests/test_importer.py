@@ -73,7 +73,7 @@ def test_import_cli_rejects_a_record_failing_the_schema(tmp_path, capsys):
     mp = tmp_path / "m.yaml"
     mp.write_text("columns:\n  t: {quantity: time, unit: ms}\n  F: {quantity: force, unit: daN}\n")
     out = tmp_path / "monosine" / "x.parquet"
-    assert main(["import", "--map", str(mp), str(src), "--out", str(out)]) == 1
+    assert main(["import", "--map", str(mp), str(src), "--out", str(out)]) == 2
     assert "missing column 'displacement [m]'" in capsys.readouterr().err and not out.exists()
     ok = tmp_path / "misc" / "x.parquet"
     assert main(["import", "--map", str(mp), str(src), "--out", str(ok)]) == 0

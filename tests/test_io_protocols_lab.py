@@ -261,4 +261,4 @@ def test_plot_command_writes_readable_pngs(tmp_path):
     for p in pngs:
         with Image.open(p) as im:
             assert im.size[0] > 600 and im.size[1] > 400
-    assert main(["plot", "no_such_case", "--conf", str(CONF)]) == 1
+    assert main(["plot", "no_such_case", "--conf", str(CONF)]) == 2

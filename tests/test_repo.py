@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import yaml
 
 from dampertwin.cli import main
@@ -40,7 +41,7 @@ def test_cli_show_and_check(capsys, tmp_path):
 def test_cli_entry_point_exit_code(tmp_path):
     r = subprocess.run([sys.executable, "-m", "dampertwin.cli", "design", "check", str(tmp_path / "nope.yaml")],
                        capture_output=True, text=True)
-    assert r.returncode == 1 and "file not found" in r.stderr
+    assert r.returncode == 2 and "file not found" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
 def test_dvc_yaml_is_valid():
@@ -114,3 +115,90 @@ def test_dvc_plots_one_per_kpi_family_with_identity_line_and_case_tooltip():
     assert {"field": "case", "type": "nominal"} in points["encoding"]["tooltip"]
     cfg = (ROOT / ".dvc" / "config").read_text()
     assert "remote = " in cfg  # a default remote: dvc push works
+
+
+def _pipeline_stage_names() -> set[str]:
+    """Stage names of dvc.yaml as dvc.lock spells them (foreach items as NAME@KEY)."""
+    doc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
+    names = set()
+    for name, st in doc["stages"].items():
+        each = st.get("foreach")
+        if each is None:
+            names.add(name)
+        elif isinstance(each, dict):
+            names |= {f"{name}@{k}" for k in each}
+        elif isinstance(each, list):
+            names |= {f"{name}@{k}" for k in each}
+        else:  # an interpolated foreach: not resolvable here, accept any NAME@...
+            names.add(f"{name}@*")
+    return names
+
+
+def test_dvc_lock_has_no_stage_the_pipeline_lacks():
+    lock = yaml.safe_load((ROOT / "dvc.lock").read_text())
+    names = _pipeline_stage_names()
+    stale = [s for s in lock.get("stages", {}) if s not in names and f"{s.split('@')[0]}@*" not in names]
+    assert not stale, f"dvc.lock has stages dvc.yaml lacks: {stale}"
+
+
+def test_metrics_writer_records_the_code_hash(tmp_path):
+    sys.path.insert(0, str(ROOT / "stages"))
+    try:
+        from _common import write_json
+    finally:
+        sys.path.remove(str(ROOT / "stages"))
+    from dampertwin.provenance import code_hash
+
+    write_json(tmp_path / "metrics.json", {"a": 1.0})
+    write_json(tmp_path / "other.json", {"a": 1.0})
+    import json
+
+    doc = json.loads((tmp_path / "metrics.json").read_text())
+    assert doc == {"a": 1.0, "code_hash": code_hash()}
+    assert re.fullmatch(r"sha256:[0-9a-f]{16}", doc["code_hash"])
+    assert "code_hash" not in json.loads((tmp_path / "other.json").read_text())
+
+
+def test_code_hash_follows_the_source(tmp_path):
+    import shutil
+
+    from dampertwin.provenance import PACKAGE, code_hash
+
+    pkg = tmp_path / "dampertwin"
+    shutil.copytree(PACKAGE, pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    assert code_hash(pkg) == code_hash(PACKAGE)
+    (pkg / "__pycache__").mkdir(exist_ok=True)
+    (pkg / "__pycache__" / "x.py").write_text("ignored")
+    assert code_hash(pkg) == code_hash(PACKAGE)
+    (pkg / "kpi.py").write_text((pkg / "kpi.py").read_text() + "\n# edited\n")
+    assert code_hash(pkg) != code_hash(PACKAGE)
+
+
+def _committed_metrics():
+    return [ROOT / rel for rel in _tracked_files() if rel.startswith("results/") and rel.endswith("metrics.json")]
+
+
+@pytest.mark.xfail(strict=True, reason="the committed results predate code_hash (added with issue 36); "
+                   "once the study is rerun this passes and the marker must go")
+def test_committed_metrics_carry_the_code_hash():
+    import json
+
+    files = _committed_metrics()
+    assert files
+    missing = [str(p.relative_to(ROOT)) for p in files if "code_hash" not in json.loads(p.read_text())]
+    assert not missing, f"metrics without code_hash: {missing}"
+
+
+def test_committed_outputs_open_offline():
+    """report.html and the plots page embed their images; no committed CSV is header-only."""
+    import pandas as pd
+
+    for rel in ("results/approach1/report.html", "results/approach1/plots/index.html"):
+        page = (ROOT / rel).read_text()
+        srcs = re.findall(r'<img src="([^"]+)"', page)
+        assert all(s.startswith("data:image/png;base64,") for s in srcs), rel
+        assert "<script" not in page and "http://" not in page and "https://" not in page, rel
+    assert re.findall(r'<img src="data:', (ROOT / "results/approach1/plots/index.html").read_text())
+    for rel in _tracked_files():
+        if rel.endswith(".csv"):
+            assert len(pd.read_csv(ROOT / rel)) > 0, f"{rel}: no rows"

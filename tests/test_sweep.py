@@ -19,7 +19,7 @@ from conftest import ROOT
 
 
 def sweep(tmp: Path, *args: str) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "dampertwin.sweep", "-m", f"results_dir={tmp}", "sweep=t", "tests=[monosine]",
+    cmd = [sys.executable, "-m", "dampertwin.cli", "sweep", f"results_dir={tmp}", "sweep=t", "tests=[monosine]",
            "use_calibrated=false", *args]
     r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=dict(os.environ, MPLBACKEND="Agg"))
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]

@@ -1,4 +1,5 @@
-"""Command line: ``dampertwin design show|check``, ``plot``, ``import``, ``fit``, ``lab``."""
+"""Command line: ``dampertwin design show|check``, ``simulate``, ``plot``, ``import``, ``fit``, ``lab``,
+``discrepancy``, ``sweep`` and ``--version``."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ from pathlib import Path
 
 from .design import TYPES, DesignError, load
 from .design.schema import TYPE_MEANING
-from .errors import USER_ERROR_EXIT, debug_enabled, one_line, user_error_types
+from . import __version__
+from .errors import USER_ERROR_EXIT, UserError, debug_enabled, one_line, user_error_types
 
 DEFAULT_DESIGN = Path("conf/design/baseline.yaml")
 
@@ -49,31 +51,52 @@ def format_table(design, ptype: str | None = None) -> str:
     return "\n".join(lines)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line usage error (``prog: error: message``, exit 2)."""
+
+    def error(self, message: str):
+        self.exit(USER_ERROR_EXIT, f"{self.prog}: error: {' '.join(message.split())}\n")
+
+
+def _cli_user_errors() -> tuple[type, ...]:
+    """Every exception type that means bad input to some subcommand."""
+    from .fitting import FitError as SubmodelFitError
+    from .importer import MappingError
+
+    return (*user_error_types(), SubmodelFitError, MappingError)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: a user error (bad file, key, column) is one line on
-    stderr and exit 2; ``--debug`` or DAMPERTWIN_DEBUG=1 adds the traceback."""
+    """Entry point. Exit 0 on success; 2 with one line on stderr for a user
+    error (bad file, key, column, option) in any subcommand; 1 only where a
+    subcommand documents it (``design check`` found problems; a sweep whose
+    every variant failed). ``--debug`` or DAMPERTWIN_DEBUG=1 adds the traceback."""
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = debug_enabled(argv)
     try:
         return _main([a for a in argv if a != "--debug"])
-    except user_error_types() as e:
+    except _cli_user_errors() as e:
         if debug:
             traceback.print_exc()
         print(f"dampertwin: error: {one_line(e)}", file=sys.stderr)
         return USER_ERROR_EXIT
 
 
-def _main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="dampertwin", description="Semi-active damper digital twin "
-                                 "(--debug: tracebacks for errors)")
-    sub = ap.add_subparsers(dest="cmd", required=True)
+def build_parser() -> argparse.ArgumentParser:
+    """The whole command line (also read by the documentation's CLI reference)."""
+    ap = _Parser(prog="dampertwin", description="Semi-active damper digital twin. Exit codes: 0 success, "
+                 "2 user error (one line on stderr; --debug adds the traceback), 1 only where a command says so.")
+    ap.add_argument("--version", action="version", version=f"dampertwin {__version__}")
+    sub = ap.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     dsg = sub.add_parser("design", help="inspect and validate design descriptions")
-    dsub = dsg.add_subparsers(dest="action", required=True)
+    dsub = dsg.add_subparsers(dest="action", required=True, parser_class=_Parser)
     show = dsub.add_parser("show", help="print the parameter table of a design")
     show.add_argument("path", nargs="?", default=str(DEFAULT_DESIGN))
     show.add_argument("--type", choices=TYPES, help="only parameters of this type")
-    chk = dsub.add_parser("check", help="validate a design file; exit 1 listing every problem")
+    chk = dsub.add_parser("check", help="validate a design file; exit 1 listing every problem it finds "
+                                        "(exit 2 if the file does not exist)")
     chk.add_argument("path")
+    _add_simulate(sub)
     plot = sub.add_parser("plot", help="PNG plots of one design case: P-Q, F-V / F-x, mono-sine, PSD")
     plot.add_argument("case", help="design case, a file name of conf/variant/ (e.g. baseline_1.6)")
     plot.add_argument("--measured", "--data", dest="data", default=None,
@@ -86,13 +109,36 @@ def _main(argv: list[str]) -> int:
     _add_import_fit(sub)
     lab = sub.add_parser("lab", help="virtual laboratory: run a hidden-sample file through the standard tests "
                          "(SYNTHETIC data)")
-    lab.add_argument("--sample", required=True, help="hidden-sample YAML (README: the virtual laboratory)")
+    lab.add_argument("--sample", required=True, help="hidden-sample YAML (see the virtual laboratory in the docs)")
     lab.add_argument("--out", required=True, help="output folder: OUT/<test>/<case>.parquet")
     lab.add_argument("--tests", default=None, help="comma-separated tests (default all), e.g. monosine,random")
     lab.add_argument("--seed", type=int, default=0, help="noise / scatter seed")
     lab.add_argument("--conf", default=None, help="configuration folder with test/ and variant/ (default the project's)")
     lab.add_argument("--workers", type=int, default=None, help="parallel processes (default: all cores)")
     _add_discrepancy(sub)
+    swp = sub.add_parser("sweep", help="one-factor-at-a-time design sweep (Hydra multirun of conf/sweep.yaml); "
+                         "exit 1 if every variant failed", add_help=False)
+    swp.add_argument("--root", default=None, help="project root (default $DAMPERTWIN_ROOT or the repository "
+                     "around the working directory)")
+    swp.add_argument("overrides", nargs="*", metavar="OVERRIDE",
+                     help="Hydra overrides, e.g. +ofat=table65 or factor=piston_intake.a level=-0.3,0.3 "
+                          "(-m is implied); --help shows Hydra's help")
+    return ap
+
+
+def _main(argv: list[str]) -> int:
+    ap = build_parser()
+    if argv and argv[0] == "sweep":  # Hydra parses its own options (-m, --cfg, --help, ...), in order
+        rest, root = list(argv[1:]), None
+        if "--root" in rest:
+            i = rest.index("--root")
+            if i + 1 >= len(rest):
+                raise UserError("sweep: argument --root: expected one argument (a project folder)")
+            root = rest[i + 1]
+            del rest[i:i + 2]
+        from .sweep import multirun
+
+        return multirun(rest, root=root)
     args = ap.parse_args(argv)
     from .cli_checks import check_args, output_lock
 
@@ -102,29 +148,57 @@ def _main(argv: list[str]) -> int:
             return _run_discrepancy(args)
         if args.cmd == "lab":
             return _run_lab(args)
+        if args.cmd == "simulate":
+            return _run_simulate(args)
         if args.cmd in ("import", "fit"):
             return _run_import_fit(args)
     if args.cmd == "plot":
         from .plotting import plot_case
 
         try:
-            for p in plot_case(args.case, Path(args.conf), Path(args.data) if args.data else None, Path(args.out),
-                               Path(args.design_path) if args.design_path else None):
-                print(p)
-        except (FileNotFoundError, ValueError, DesignError) as e:
-            print(f"dampertwin plot: {e}", file=sys.stderr)
-            return 1
+            paths = plot_case(args.case, Path(args.conf), Path(args.data) if args.data else None, Path(args.out),
+                              Path(args.design_path) if args.design_path else None)
+        except ValueError as e:  # a design the plots cannot simulate
+            raise UserError(f"plot {args.case}: {one_line(e)}") from None
+        for p in paths:
+            print(p)
         return 0
+    return _run_design(args)
 
+
+def _run_design(args) -> int:
+    if not Path(args.path).is_file():
+        raise FileNotFoundError(f"{args.path}: design file not found")
+    if args.action == "show":
+        print(format_table(load(args.path), args.type))  # a bad design: DesignError, exit 2
+        return 0
     try:
         design = load(args.path)
-    except DesignError as e:
+    except DesignError as e:  # the documented exit 1: every problem the check found
         print(str(e), file=sys.stderr)
         return 1
-    if args.action == "show":
-        print(format_table(design, args.type))
-    else:
-        print(f"{args.path}: OK ({len(design.parameters)} parameters, hash {design.hash()})")
+    print(f"{args.path}: OK ({len(design.parameters)} parameters, hash {design.hash()})")
+    return 0
+
+
+def _add_simulate(sub) -> None:
+    sim = sub.add_parser("simulate", help="simulate the runs of one standard test on a design: "
+                                          "OUT/TEST.parquet and OUT/TEST.png")
+    sim.add_argument("design", help="design YAML, e.g. conf/design/baseline.yaml")
+    sim.add_argument("--test", required=True, help="a test of conf/test/ (monosine, curving, flowbench, ...)")
+    sim.add_argument("--case", default=None, help="one run of the test by name (e.g. I1.6, v0.1_I1.6, "
+                                                  "piston_rebound); default all")
+    sim.add_argument("--current", type=float, default=None, help="only the runs at this active-valve current [A]")
+    sim.add_argument("--out", required=True, help="output folder")
+    sim.add_argument("--conf", default="conf", help="configuration folder with test/ (default conf)")
+
+
+def _run_simulate(args) -> int:
+    from .simulate_test import simulate_test
+
+    for p in simulate_test(args.design, args.test, args.out, case=args.case, current=args.current,
+                           conf=args.conf):
+        print(p)
     return 0
 
 
@@ -165,25 +239,15 @@ def _add_import_fit(sub) -> None:
 
 
 def _run_import_fit(args) -> int:
-    from .io import DataError
-
+    """Bad input (mapping, data, design, bounds) raises; main() makes it exit 2."""
     if args.cmd == "import":
-        from .importer import MappingError, import_measurement
+        from .importer import import_measurement
 
-        try:
-            print(import_measurement(args.src, args.mapping, args.out, protocol=args.protocol))
-        except (MappingError, DataError) as e:
-            print(f"dampertwin import: {e}", file=sys.stderr)
-            return 1
+        print(import_measurement(args.src, args.mapping, args.out, protocol=args.protocol))
         return 0
-    from .fitting import FitError, run_fit_cli
+    from .fitting import run_fit_cli
 
-    try:
-        path = run_fit_cli(args)
-    except (FitError, DataError, DesignError) as e:
-        print(f"dampertwin fit: {e}", file=sys.stderr)
-        return 1
-    print(path)
+    print(run_fit_cli(args))
     return 0
 
 

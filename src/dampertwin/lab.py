@@ -464,7 +464,7 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
     synthetic. ``conf`` is the configuration folder (protocols, variants;
     default the project's); ``workers`` processes run the cases in parallel
     (default: the machine's cores). Same sample, seed and conf: same bytes."""
-    from tqdm import tqdm
+    from .progress import progress as tqdm
 
     from .config import repo_root
 

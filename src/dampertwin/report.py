@@ -24,10 +24,33 @@ VALVE_COLOURS = {"piston_rebound": "tab:red", "piston_intake": "tab:orange", "ba
 LPM = 60000.0  # m^3/s -> l/min
 
 
+def fit_title(text: str, width_in: float, fontsize: float = 10.0) -> str:
+    """``text`` wrapped so that each line fits ``width_in`` inches at ``fontsize`` points
+    (an average glyph about 0.6 em wide, 10 % margin), existing line breaks kept."""
+    import textwrap
+
+    chars = max(20, int(0.9 * width_in * 72 / (0.6 * fontsize)))
+    return "\n".join(textwrap.fill(line, chars) for line in text.split("\n"))
+
+
+def _legend(ax, **kw) -> None:
+    """A legend only when something is labelled (no empty legend boxes)."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(**kw)
+
+
 def pq_figure(measured: dict[str, pd.DataFrame], simulated: dict[str, pd.DataFrame], title: str):
-    """P-Q curves per valve: measured (opening / closing) and simulated."""
-    fig, axes = plt.subplots(2, 2, figsize=(10, 7.5), constrained_layout=True)
-    for ax, valve in zip(axes.flat, VALVE_LABELS):
+    """P-Q curves, one panel per valve with data: measured (opening / closing) and simulated."""
+    valves = [v for v in VALVE_LABELS if v in measured or v in simulated]
+    if not valves:
+        raise ValueError("pq_figure: no valve has measured or simulated data")
+    ncol = 1 if len(valves) == 1 else 2
+    nrow = (len(valves) + ncol - 1) // ncol
+    width = 6.5 if ncol == 1 else 10
+    fig, axes = plt.subplots(nrow, ncol, figsize=(width, 3.8 * nrow + 0.6), constrained_layout=True, squeeze=False)
+    for ax in axes.flat[len(valves):]:
+        ax.remove()
+    for ax, valve in zip(axes.flat, valves):
         for src, frames, style in (("measured", measured, "-"), ("simulated", simulated, "--")):
             if valve not in frames:
                 continue
@@ -38,8 +61,8 @@ def pq_figure(measured: dict[str, pd.DataFrame], simulated: dict[str, pd.DataFra
                         label=f"{src}, {branch}")
         ax.set(title=VALVE_LABELS[valve], xlabel="flow [l/min]", ylabel="pressure drop [bar]")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle(title)
+        _legend(ax, fontsize=7)
+    fig.suptitle(fit_title(title, width, 11), fontsize=11)
     return fig
 
 
@@ -70,8 +93,8 @@ def curving_figure(results: dict[float, list[tuple[str, pd.DataFrame]]], measure
     ax_x.set(xlabel="displacement [mm]", ylabel="force [N]", title="force-displacement (fastest run)")
     for ax in (ax_v, ax_x):
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle(title)
+        _legend(ax, fontsize=7)
+    fig.suptitle(fit_title(title, 12, 11), fontsize=11)
     return fig
 
 
@@ -97,9 +120,10 @@ def monosine_figure(sim: pd.DataFrame, measured: pd.DataFrame | None, frequency:
         opens = t[m][1:][(lift[1:] > 0) & (lift[:-1] <= 0)]
         for to in opens:
             ax.axvline(to, color=VALVE_COLOURS[valve], ls=":", lw=1)
-    ax.set(ylabel="rod acceleration [g] (+ up)", title=title)
+    ax.set(ylabel="rod acceleration [g] (+ up)")
+    ax.set_title(fit_title(title, 11, 10), fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    _legend(ax, fontsize=8)
     axv.set(yticks=[0.4, 1.4, 2.4, 3.4], yticklabels=[v.replace("_", " ") for v in VALVE_LABELS], xlabel="time [s]")
     axv2 = axv.twinx()
     vel = np.gradient(sim["displacement [m]"].to_numpy(), t)
@@ -147,9 +171,10 @@ def psd_figure(sim_df: pd.DataFrame, measured: pd.DataFrame | None, title: str):
         ax.semilogx(f[1:], 10 * np.log10(P[1:]), color=c, lw=0.9, label=label)
     for fc in (200, 300):
         ax.axvline(fc, color="tab:red", ls=":", lw=1)
-    ax.set(xlim=(5, 1000), xlabel="frequency [Hz]", ylabel="PSD of rod acceleration [dB re 1 g^2/Hz]", title=title)
+    ax.set(xlim=(5, 1000), xlabel="frequency [Hz]", ylabel="PSD of rod acceleration [dB re 1 g^2/Hz]")
+    ax.set_title(fit_title(title, 9, 10), fontsize=10)
     ax.grid(alpha=0.3, which="both")
-    ax.legend()
+    _legend(ax)
     return fig
 
 
@@ -174,4 +199,4 @@ def frame(result) -> pd.DataFrame:
     return f
 
 
-__all__ = ["pq_figure", "curving_figure", "monosine_figure", "kpi_peak_points", "psd_figure", "simulate_from_record", "frame"]
+__all__ = ["fit_title", "pq_figure", "curving_figure", "monosine_figure", "kpi_peak_points", "psd_figure", "simulate_from_record", "frame"]

@@ -1,13 +1,20 @@
 """The approach-1 study report: results/approach1/report.md (+ report.html):
-thesis tables 6.5 / 6.6 with flags, every fit's parameters with Gauss-Newton
+thesis tables 6.5 / 6.6 with flags, every fit's parameters with their
 95 % intervals and identifiability, objective before / after, and the plots
-embedded (relative links). Built by the `compare` stage from its own inputs;
-``build_report`` needs only the study folder's tables and JSON files."""
+(relative links in the Markdown; embedded as base64 data URIs in the HTML, so
+report.html opens offline and without the DVC cache). Also the KPI scatter
+data for `dvc plots` (plots/kpi_*.csv) and a static plots page
+(plots/index.html, matplotlib PNGs embedded, no network). Built by the
+`compare` stage; ``build_report`` needs only the study folder's tables and
+JSON files (a PNG absent from the folder is named in the page, not broken)."""
 
 from __future__ import annotations
 
+import base64
+import html as html_lib
 import json
 import math
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -144,7 +151,7 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
     md_path = study / "report.md"
     _write(md_path, text)
     html_path = study / "report.html"
-    _write(html_path, to_html(text, f"Approach-1 study report ({profile})"))
+    _write(html_path, embed_images(to_html(text, f"Approach-1 study report ({profile})"), study))
     return md_path, html_path
 
 
@@ -166,9 +173,120 @@ def to_html(markdown_text: str, title: str) -> str:
     body = MarkdownIt("commonmark").enable("table").render(markdown_text)
     style = ("body{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em}"
              "table{border-collapse:collapse;font-size:0.85em}td,th{border:1px solid #ccc;padding:2px 6px}"
-             "img{max-width:100%}")
+             "img{max-width:100%}.missing{color:#a00;font-style:italic}")
     return f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>{title}</title><style>{style}</style>" \
            f"</head><body>\n{body}</body></html>\n"
+
+
+_IMG = re.compile(r'<img src="([^"]+)" alt="([^"]*)"\s*/?>')
+
+
+def embed_images(page: str, base: Path) -> str:
+    """Every ``<img src="relative.png">`` of ``page`` as a base64 data URI
+    (the file read from ``base``); an absent file becomes a visible note
+    naming it instead of a broken image."""
+
+    def sub(m: re.Match) -> str:
+        src, alt = html_lib.unescape(m.group(1)), m.group(2)
+        if src.startswith(("data:", "http:", "https:")):
+            return m.group(0)
+        p = base / src
+        if not p.is_file():
+            return (f'<span class="missing">[image not available: {html_lib.escape(src)} - a DVC output; '
+                    f'<code>dvc repro compare</code> or <code>dvc pull</code> makes it]</span>')
+        data = base64.b64encode(p.read_bytes()).decode()
+        return f'<img src="data:image/png;base64,{data}" alt="{alt}">'
+
+    return _IMG.sub(sub, page)
+
+
+KPI_FAMILIES = {"kpi_peaks.csv": tuple(f"{h} {e} [g]" for h in ("rebound", "compression") for e in ("max", "min")),
+                "kpi_psd.csv": ("PSD 200 Hz [dB]", "PSD 300 Hz [dB]")}
+
+
+def kpi_points(t65: pd.DataFrame, t66: pd.DataFrame, cases: list[str]) -> pd.DataFrame:
+    """Simulated vs measured per design case and KPI (tables 6.5 / 6.6 in
+    long form): columns case, kpi, simulated, measured. ``cases``: the case
+    folder names in table row order."""
+    if len(cases) != len(t65) or len(cases) != len(t66):
+        raise ValueError(f"kpi_points: {len(cases)} cases for tables of {len(t65)} / {len(t66)} rows")
+    rows = []
+    for case, (_, r65), (_, r66) in zip(cases, t65.iterrows(), t66.iterrows()):
+        for h in ("Rebound", "Compression"):
+            for e in ("max", "min"):
+                rows.append({"case": case, "kpi": f"{h.lower()} {e} [g]", "simulated": float(r65[f"{h} {e} simulated [g]"]),
+                             "measured": float(r65[f"{h} {e} measured [g]"])})
+        for f in (200, 300):
+            rows.append({"case": case, "kpi": f"PSD {f} Hz [dB]", "simulated": float(r66[f"{f} Hz simulated [dB]"]),
+                         "measured": float(r66[f"{f} Hz measured [dB]"])})
+    return pd.DataFrame(rows)
+
+
+def write_kpi_plots(study: str | Path, points: pd.DataFrame) -> list[Path]:
+    """plots/kpi_peaks.csv, plots/kpi_psd.csv (for `dvc plots show`) and
+    plots/kpi_scatter.png (the same, static); a family without rows is an error."""
+    plots = Path(study) / "plots"
+    plots.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, kpis in KPI_FAMILIES.items():
+        sel = points[points.kpi.isin(kpis)]
+        if sel.empty:
+            raise ValueError(f"{plots / name}: no rows for {', '.join(kpis)}; the KPI names changed?")
+        _write(plots / name, sel.to_csv(index=False, lineterminator="\n"))
+        written.append(plots / name)
+    fig = kpi_scatter_figure(points)
+    png = plots / "kpi_scatter.png"
+    tmp = png.with_name(f".{png.name}.tmp.png")
+    fig.savefig(tmp, dpi=100, metadata={"Software": None})
+    import os
+
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    os.replace(tmp, png)
+    return [*written, png]
+
+
+def kpi_scatter_figure(points: pd.DataFrame):
+    """Simulated vs measured, one panel per KPI family, with the y = x line."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 5), constrained_layout=True)
+    for ax, (name, kpis), title in zip(axes, KPI_FAMILIES.items(),
+                                       ("Mono-sine rod acceleration extremes [g] (table 6.5)",
+                                        "Random-test PSD [dB re 1 g^2/Hz] (table 6.6)")):
+        sel = points[points.kpi.isin(kpis)]
+        for k, g in sel.groupby("kpi", sort=False):
+            ax.plot(g.measured, g.simulated, "o", ms=5, alpha=0.8, label=k)
+        lo = float(min(sel.measured.min(), sel.simulated.min()))
+        hi = float(max(sel.measured.max(), sel.simulated.max()))
+        pad = 0.05 * (hi - lo or 1.0)
+        ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], "-", color="0.5", lw=1, label="y = x")
+        ax.set(xlabel="measured", ylabel="simulated")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle("Calibrated model vs measurement, every design case", fontsize=11)
+    return fig
+
+
+def plots_page(study: str | Path) -> Path:
+    """plots/index.html: every PNG of the study (KPI scatter, per case, per fit)
+    embedded, so it opens offline; written atomically."""
+    study = Path(study)
+    pngs = sorted(p.relative_to(study).as_posix() for p in study.rglob("*.png") if "checkpoints" not in p.parts)
+    first = [p for p in pngs if p == "plots/kpi_scatter.png"]
+    md = ["# Approach-1 study: plots", "",
+          "Static page: every image is embedded; the `dvc plots show` page needs the Vega scripts from the web.",
+          ""]
+    md += [f"## {p}\n\n![{p}]({p})\n" for p in first + [p for p in pngs if p not in first]]
+    out = study / "plots" / "index.html"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    _write(out, embed_images(to_html("\n".join(md) + "\n", "Approach-1 study plots"), study))
+    return out
 
 
 def _write(path: Path, text: str) -> None:
@@ -179,4 +297,5 @@ def _write(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-__all__ = ["build_report", "to_html", "fit_rows", "PEAK_FLAG_PCT", "PSD_FLAG_DB"]
+__all__ = ["build_report", "to_html", "fit_rows", "embed_images", "kpi_points", "write_kpi_plots", "plots_page",
+           "KPI_FAMILIES", "PEAK_FLAG_PCT", "PSD_FLAG_DB"]

@@ -1,10 +1,10 @@
 """One-factor-at-a-time design sweeps with Hydra multirun (thesis table 6.5
 design cases, or any parameter at chosen levels).
 
-    python -m dampertwin.sweep -m 'variant=glob(*)'                 # the 10 design cases
-    python -m dampertwin.sweep -m +ofat=c_params                    # every C parameter at -20 % / +20 %
-    python -m dampertwin.sweep -m factor=piston_intake.a,base_intake.a level=-0.2,0.2
-    python -m dampertwin.sweep -m 'variant=glob(*)' hydra/launcher=slurm   # same sweep on SLURM (submitit)
+    dampertwin sweep 'variant=glob(*)'                 # the 10 design cases
+    dampertwin sweep +ofat=c_params                    # every C parameter at -20 % / +20 %
+    dampertwin sweep factor=piston_intake.a,base_intake.a level=-0.2,0.2
+    dampertwin sweep 'variant=glob(*)' hydra/launcher=slurm   # same sweep on SLURM (submitit)
 
 Each job writes results/sweeps/<sweep>/<name>/ (time series and KPIs as
 Parquet with the resolved config and design hash in the metadata); a job
@@ -362,41 +362,57 @@ except ImportError:  # pragma: no cover
 _OUTCOME = {"all_failed": False}
 
 
-def _main() -> None:
-    """``python -m dampertwin.sweep [--root DIR] [hydra args]``: the project
-    root is --root, $DAMPERTWIN_ROOT or the repository around the working
-    directory. Exit 1 if every variant failed, 2 for a bad root."""
+def multirun(overrides: list[str], root: str | Path | None = None) -> int:
+    """Run the Hydra multirun of ``conf/sweep.yaml`` with ``overrides``
+    (``-m`` is added when missing). The project root is ``root``,
+    $DAMPERTWIN_ROOT or the repository around the working directory.
+    Returns 0, or 1 if every variant failed; a bad root is a UserError.
+    The command line is ``dampertwin sweep`` (cli.py)."""
     import hydra
 
-    argv = sys.argv[1:]
-    root_arg = None
-    if "--root" in argv:
-        i = argv.index("--root")
-        if i + 1 >= len(argv):
-            print("dampertwin.sweep: error: --root needs a folder", file=sys.stderr)
-            sys.exit(2)
-        root_arg = argv[i + 1]
-        del argv[i:i + 2]
-    try:
-        root = project_root(root_arg)
-    except UserError as e:
-        print(f"dampertwin.sweep: error: {one_line(e)}", file=sys.stderr)
-        sys.exit(2)
+    root = project_root(root)
+    # Hydra takes its options before the overrides: -m first, then the overrides in the user's order
+    info = any(a in ("-h", "--help", "--hydra-help", "--info", "--cfg", "-c") for a in overrides)
+    argv = [a for a in overrides if a not in ("-m", "--multirun")]
+    if not info:
+        argv.insert(0, "-m")
     if not any(a.startswith("root=") for a in argv):
         argv.append(f"root='{root}'" if "'" not in str(root) else f'root="{root}"')
-    sys.argv = [sys.argv[0], *argv]
+    saved = sys.argv
+    sys.argv = [saved[0] if saved else "dampertwin", *argv]
+    _OUTCOME["all_failed"] = False
 
     @hydra.main(config_path=str(root / "conf"), config_name="sweep", version_base="1.3")
     def app(cfg: DictConfig) -> None:
         run_variant(cfg)
 
-    app()
-    from dampertwin import sweep as this  # the callback's module (this file runs as __main__)
+    # Hydra reports a bad override itself (several lines, exit 1): its stderr is held back and a
+    # failure before any job becomes one UserError line (exit 2); otherwise it is passed on unchanged
+    import contextlib
+    import io
+
+    held = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(held):
+            app()
+    except SystemExit as e:
+        if e.code in (0, None):
+            raise
+        lines = [ln.strip() for ln in held.getvalue().splitlines()
+                 if ln.strip() and "HYDRA_FULL_ERROR" not in ln]
+        raise UserError("sweep: " + ("; ".join(lines) or f"Hydra exited with {e.code}")) from None
+    finally:
+        sys.argv = saved
+        sys.stderr.write(held.getvalue() if not sys.exc_info()[0] else "")
+    from dampertwin import sweep as this  # the callback's module (this file may run as __main__)
 
     if this._OUTCOME["all_failed"]:
         log.error("every variant of the sweep failed")
-        sys.exit(1)
+        return 1
+    return 0
 
 
-if __name__ == "__main__":
-    _main()
+if __name__ == "__main__":  # compatible path: `python -m dampertwin.sweep ARGS` = `dampertwin sweep ARGS`
+    from dampertwin.cli import main as _cli_main
+
+    sys.exit(_cli_main(["sweep", *sys.argv[1:]]))

@@ -228,7 +228,7 @@ def sensitivity(design: Design, measured: pd.DataFrame, cal: dict, settings: Sen
                 bandwidth: float | None, max_wall_s: float | None, batch: int = 16, progress: bool = True):
     """Time-resolved grouped Sobol indices of the simulated training force
     (valve groups only). Returns (problem, SobolResult, Y)."""
-    from tqdm import tqdm
+    from ..progress import progress as tqdm
 
     groups, _ = groups_from_config(design, cal)
     sg = [sens.Group(g.name, g.specs) for g in groups]

@@ -97,7 +97,7 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
     checkpoint is reused only if groups, settings, seed, x0 and ``context``
     match."""
     import pygad
-    from tqdm import tqdm
+    from ..progress import progress as tqdm
 
     groups = list(groups)
     G = len(groups)

@@ -137,7 +137,7 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
     checkpoint is reused only if specs, settings, seed, x0 and ``context``
     (a hash of the inputs: design, measured data) all match."""
     import pygad
-    from tqdm import tqdm
+    from ..progress import progress as tqdm
 
     k = len(specs)
     cache: dict[bytes, float] = {}

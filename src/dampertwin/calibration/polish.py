@@ -33,7 +33,7 @@ F_SCALE_FRACTION = 0.1  # soft_l1 f_scale as a fraction of the median |weighted 
 # 0.53 of the largest singular value (lab 2 sample 1, gene step 1e-3), so every weak
 # direction was solver noise and the intervals came out 10-100x too narrow. At rtol 1e-7
 # the solver part of the error is still ~0.004 of it at step 3e-3, at 1e-8 below the
-# curvature part (README "What the intervals do not cover").
+# curvature part (docs/validation/approach1.md "What the intervals do not cover").
 UNCERTAINTY_RTOL = 1e-8
 UNCERTAINTY_ATOL = 1e-6
 UNCERTAINTY_STEP = 3e-3  # gene-space step of the uncertainty's central differences
@@ -129,7 +129,7 @@ def polish(records: Records, specs: list[ParamSpec], res: FitResult, settings: P
     other end point inside the best's joint 95 % confidence region widens
     the uncertainty report (:func:`uncertainty.other_optima`)."""
     from scipy.optimize import least_squares
-    from tqdm import tqdm
+    from ..progress import progress as tqdm
 
     w = records.weights
 

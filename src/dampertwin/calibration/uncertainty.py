@@ -28,7 +28,7 @@ misspecified-model sandwich; Ibragimov & Mueller 2010, J. Bus. Econ.
 Stat. 28:453-468, for batches and t with B - 1 dof), and the wider of the
 two is reported (the sandwich alone is biased low when few batches see
 very different inputs, e.g. smooth regressors). Neither covers a bias: a model error the data prefer to
-the truth moves the optimum itself (README, "What the intervals do not
+the truth moves the optimum itself (docs/validation/approach1.md, "What the intervals do not
 cover").
 
 The Jacobian is by central differences with an estimate of its own error

@@ -98,9 +98,10 @@ def overlays(problem, signals, out) -> list:
         scale, xl = (6e4, "flow [l/min]") if u.drive == F.FLOW else (1e3, "displacement [mm]")
         x = u.measured[u.drive][m] * scale
         for ax, ch in zip(axes[0], u.channels):
-            ax.plot(x, u.measured[ch][m], color="tab:purple", lw=1, label="measured")
-            ax.plot(x, sb[ch][m], "--", color="0.4", lw=1, label="before")
-            ax.plot(x, sa[ch][m], color="tab:green", lw=1, label="after")
+            # the measured curve on top, thick and dark: "after" often lies on it and must not hide it
+            ax.plot(x, sb[ch][m], "--", color="0.55", lw=1, label="before", zorder=2)
+            ax.plot(x, sa[ch][m], color="tab:green", lw=2.6, alpha=0.7, label="after", zorder=3)
+            ax.plot(x, u.measured[ch][m], color="k", lw=0.9, label="measured", zorder=4)
             ax.set(xlabel=xl, ylabel=ch, title=f"{u.key}: last cycle")
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7)
@@ -118,9 +119,10 @@ def _temperature_overlay(u, before, after, out):
     thermocouple, design under test, final design."""
     ref = u.t < u.t[0] + 1.0
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
-    for y, style, col, lab in ((u.measured[F.TEMP], "-", "tab:purple", "measured (thermocouple)"),
-                               (before, "--", "0.4", "before"), (after, "-", "tab:green", "after")):
-        ax.plot(u.t - u.t[0], y - np.mean(y[ref]), style, color=col, lw=1, label=lab)
+    for y, style, col, lw, lab in ((before, "--", "0.55", 1.0, "before"), (after, "-", "tab:green", 2.6, "after"),
+                                   (u.measured[F.TEMP], "-", "k", 0.9, "measured (thermocouple)")):
+        ax.plot(u.t - u.t[0], y - np.mean(y[ref]), style, color=col, lw=lw, label=lab,
+                alpha=0.7 if lab == "after" else 1.0)  # measured drawn last, thin and black
     ax.set(xlabel="time [s]", ylabel="oil temperature rise [K]", title=f"{u.key}: oil temperature")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)

@@ -186,7 +186,7 @@ class Problem:
         separate tasks on ``executor`` when one is set (a process pool:
         a refit step simulates ONE design, which a batch alone cannot spread
         over the cores), longest first; the results are the same numbers."""
-        from tqdm import tqdm
+        from ..progress import progress as tqdm
 
         n = len(self.units)
         args = [(u, self.fcfg, self.variant_of.get(u.case), designs, keep) for u in self.units]

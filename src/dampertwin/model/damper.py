@@ -20,7 +20,7 @@ own parameters (``p[P.<name>]``) and states (at the offset of its block,
 ``SB.<block>``) and writes its own state rates, so adding a parameter or a
 state to a submodel does not touch this file.
 
-The effects the thesis lacks (README "Effect library") hook in here, each a
+The effects the thesis lacks (docs "Effect library") hook in here, each a
 call into its own file that returns its input unchanged when switched off.
 The two with states (active_valve_lag, oil_thermal) run only in the extended
 configurations ``rhs_damper_x`` / ``rhs_module_x`` (layout.variant), whose

@@ -121,7 +121,7 @@ class EffectRecord:
     """One switchable effect of the model: what it is, its source, whether
     the thesis has it (its own optional effect) or it is new, the KPI it
     moves with the documented direction, and the test that shows it
-    (README "Effect library" is generated from these, ``effects_table``)."""
+    (the docs page "Effect library" is generated from these, ``effects_table``)."""
 
     name: str
     description: str
@@ -191,8 +191,8 @@ assert set(EFFECTS_LIBRARY) == set(EFFECT_INDEX), sorted(set(EFFECTS_LIBRARY) ^ 
 
 
 def effects_table(design: Design) -> str:
-    """The README "Effect library" table (markdown) from EFFECTS_LIBRARY and
-    the design's effect parameters; tests/test_effects.py checks the README."""
+    """The "Effect library" table (markdown, docs/explanation/effects.md) from EFFECTS_LIBRARY and
+    the design's effect parameters; rendered by scripts/mkdocs_hooks.py."""
     rows = ["| effect | what it is | source | parameters | what it should change (test) | off in baseline |",
             "|---|---|---|---|---|---|"]
     for r in EFFECTS_LIBRARY.values():

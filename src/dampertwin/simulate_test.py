@@ -1,0 +1,109 @@
+"""``dampertwin simulate DESIGN --test NAME [--case C] [--current I] --out DIR``:
+simulate the runs of one standard test (``conf/test/NAME.yaml``) on a design
+and write ``OUT/NAME.parquet`` (one row per sample, a ``run`` column, the
+layout of a measured file) and ``OUT/NAME.png`` (the main output of each run
+against time). The runs come from :func:`dampertwin.protocols.build_runs`
+exactly as the virtual laboratory plans them, without its bench errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import __version__
+from .design import load as load_design
+from .errors import UserError
+from .io import write_frame
+from .protocols import build_runs, flow_bench, load_protocol
+from .simulation import simulate
+
+# the channel drawn per configuration, with its unit label
+MAIN_CHANNEL = {"valve": ("dp [Pa]", 1e-5, "pressure drop [bar]"), "damper": ("rod force [N]", 1.0, "force [N]"),
+                "module": ("rod acceleration [m/s^2]", 1.0 / 9.80665, "rod acceleration [g]"),
+                "topmount": ("top mount force [N]", 1.0, "top-mount force [N]")}
+CURRENT_MATCH = 1e-9  # [A] a run's current equals --current within this
+
+
+def select_runs(protocol: dict, test: str, case: str | None, current: float | None, seed: int = 0) -> list:
+    """The runs of ``protocol`` named ``case`` and/or at ``current`` (all when
+    neither is given); UserError naming the known runs when none matches."""
+    runs = build_runs(protocol, seed)
+    chosen = [r for r in runs if (case is None or r.name == case)
+              and (current is None or abs(r.current - current) <= CURRENT_MATCH)]
+    if not chosen:
+        names = ", ".join(f"{r.name} ({r.current:g} A)" for r in runs)
+        want = " and ".join(x for x in (f"--case {case}" if case else "",
+                                         f"--current {current:g}" if current is not None else "") if x)
+        raise UserError(f"test {test!r}: no run matches {want}; expected one of: {names}")
+    return chosen
+
+
+def _run_frame(design, run, protocol: dict) -> pd.DataFrame:
+    kw = {}
+    if run.configuration == "valve":
+        kw = {"bench_valve": run.bench_valve, "bench": flow_bench(protocol)}
+    d = design
+    if "precharge [Pa]" in run.meta:  # friction test: the run's gas fill is the design's oil.P_0
+        d = design.with_overrides({"oil.P_0": run.meta["precharge [Pa]"]}, source=f"run {run.name}")
+    try:
+        r = simulate(d, run.excitation, run.configuration, current=run.current, rate=run.rate, **kw)
+    except ValueError as e:  # unusable parameters for this configuration
+        raise UserError(str(e)) from None
+    df = r.to_frame()
+    df.insert(0, "run", run.name)
+    return df
+
+
+def simulate_test(design_path: str | Path, test: str, out: str | Path, *, case: str | None = None,
+                  current: float | None = None, conf: str | Path = "conf") -> list[Path]:
+    """Simulate the chosen runs of a standard test; returns [parquet, png]."""
+    design_path, conf, out = Path(design_path), Path(conf), Path(out)
+    if not design_path.is_file():
+        raise UserError(f"{design_path}: design file not found; expected a design YAML "
+                        "(e.g. conf/design/baseline.yaml)")
+    proto_path = conf / "test" / f"{test}.yaml"
+    if not proto_path.is_file():
+        known = ", ".join(sorted(p.stem for p in (conf / "test").glob("*.yaml"))) or "none"
+        raise UserError(f"--test {test}: {proto_path} not found; expected one of: {known}")
+    if current is not None and not np.isfinite(current):
+        raise UserError(f"--current {current}: expected a finite current in A")
+    design = load_design(design_path)
+    protocol = load_protocol(proto_path)
+    frames = [_run_frame(design, r, protocol) for r in select_runs(protocol, test, case, current)]
+    df = pd.concat(frames, ignore_index=True)
+    meta = {"synthetic": True, "simulated": True, "design": str(design_path), "design_hash": design.hash(),
+            "test": test, "runs": [f["run"].iloc[0] for f in frames], "dampertwin": __version__}
+    out.mkdir(parents=True, exist_ok=True)
+    pq = write_frame(out / f"{test}.parquet", df, meta)
+    png = out / f"{test}.png"
+    _plot(frames, test, design_path, design.hash(), png)
+    return [pq, png]
+
+
+def _plot(frames: list[pd.DataFrame], test: str, design_path: Path, design_hash: str, path: Path) -> None:
+    import os
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cfg = frames[0].attrs.get("configuration", "damper")
+    col, scale, label = MAIN_CHANNEL.get(cfg, MAIN_CHANNEL["damper"])
+    fig, ax = plt.subplots(figsize=(9, 4.5), constrained_layout=True)
+    for f in frames:
+        c = col if col in f else "rod force [N]"
+        ax.plot(f["time [s]"], f[c] * scale, lw=0.8, label=str(f["run"].iloc[0]))
+    ax.set(xlabel="time [s]", ylabel=label)
+    ax.set_title(f"simulated {test} test: {design_path.name} ({design_hash[:8]})", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(title="run", fontsize=7, ncol=max(1, len(frames) // 10))
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.png")
+    fig.savefig(tmp, dpi=100, metadata={"Software": None})
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+__all__ = ["simulate_test", "select_runs"]
