@@ -26,22 +26,19 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from numba import njit
 
 from .design import Design, load as load_design, yaml_load
 from .io import read_frame, runs
-from .model.rod_friction import lugre, stribeck
+from .calibration import friction_fit as _ff
+from .calibration.friction_fit import coulomb_viscous_fit, nrmse  # noqa: F401  (re-exported)
+from .model.friction_only import simulate_friction  # noqa: F401  (re-exported)
+from .model.rod_friction import lugre
 
-FRICTION_PARAMS = ("F_c", "F_s", "k_b", "s2", "c_comp", "vd", "a_s", "alpha_s")
-FRICTION_KEYS = {"F_c": "rod_friction.F_c", "F_s": "rod_friction.F_s", "k_b": "rod_friction.k_b",
-                 "s2": "constants.s2", "c_comp": "constants.c_comp", "vd": "constants.vd",
-                 "a_s": "constants.a_s", "alpha_s": "constants.alpha_s"}
 DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mutation_probability": 10,
               "max_wall_s": 600.0}  # wall-time cap [s] of one population's simulations (issue 13)
 
@@ -59,49 +56,15 @@ def lugre_force(dv, z, *, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s):
     return lugre(float(z), float(dv), k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s)
 
 
-@njit(cache=True)
-def _friction_series(t, v, z0, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s, substeps):
-    """Friction force on the samples of t for the velocity v (linear between
-    samples). The bristle state advances with the exact solution of
-    dz/dt = v - k_b |v| / g(v) z for v frozen over each substep (stable for
-    any stiffness k_b)."""
-    n = len(t)
-    F = np.empty(n)
-    z = z0
-    for i in range(n):
-        dz, F[i] = lugre(z, v[i], k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s)
-        if i == n - 1:
-            break
-        h = (t[i + 1] - t[i]) / substeps
-        for k in range(substeps):
-            vm = v[i] + (v[i + 1] - v[i]) * (k + 0.5) / substeps
-            a = k_b * abs(vm) / stribeck(vm, F_c, F_s, a_s, alpha_s)
-            if a * h < 1e-12:
-                z += vm * h
-            else:
-                zs = vm / a
-                z = zs + (z - zs) * math.exp(-a * h)
-    return F
-
-
-def simulate_friction(t, velocity, *, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s, z0: float = 0.0,
-                      substeps: int = 4) -> np.ndarray:
-    """Friction-only configuration: the LuGre law driven by a prescribed
-    sliding velocity [m/s] on times t [s]. Returns the force [N] per sample."""
-    t = np.ascontiguousarray(t, float)
-    v = np.ascontiguousarray(velocity, float)
-    return _friction_series(t, v, float(z0), float(F_c), float(F_s), float(k_b), float(s2), float(c_comp),
-                            float(vd), float(a_s), float(alpha_s), int(substeps))
-
-
 def record_velocity(df: pd.DataFrame) -> np.ndarray:
     """Sliding velocity [m/s] of a record: the ``velocity [m/s]`` column if
     present, else the displacement differentiated (central differences)."""
-    if "velocity [m/s]" in df:
-        return df["velocity [m/s]"].to_numpy(float)
-    if "displacement [m]" not in df:
-        raise FitError("record has neither 'velocity [m/s]' nor 'displacement [m]'")
-    return np.gradient(df["displacement [m]"].to_numpy(float), df["time [s]"].to_numpy(float))
+    try:
+        return _ff.record_velocity(df["time [s]"].to_numpy(float),
+                                   df["displacement [m]"].to_numpy(float) if "displacement [m]" in df else None,
+                                   df["velocity [m/s]"].to_numpy(float) if "velocity [m/s]" in df else None)
+    except _ff.FrictionFitError as e:
+        raise FitError(str(e)) from None
 
 
 # ---------------------------------------------------------------- search spaces
@@ -145,32 +108,7 @@ def _merge_items(cfg_items: list | None, cli_items: list[dict]) -> list:
 
 # ---------------------------------------------------------------- statistics
 
-def nrmse(measured: np.ndarray, simulated: np.ndarray) -> float:
-    """RMS error normalised by the measured range (max - min)."""
-    m, s = np.asarray(measured, float), np.asarray(simulated, float)
-    rng = float(np.ptp(m))
-    if not np.all(np.isfinite(s)) or rng == 0:
-        return float("nan")
-    return float(np.sqrt(np.mean((s - m) ** 2)) / rng)
-
-
-def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], values: np.ndarray,
-                    jac_error: np.ndarray | None = None) -> dict:
-    """Intervals of a fit from its residual Jacobian ``J`` (d residual / d
-    parameter, physical units) at the optimum ``values``: the project's one
-    uncertainty analysis (:func:`dampertwin.calibration.uncertainty.analyse`:
-    Gauss-Newton covariance, AR(1) effective sample size, Student-t 95 %
-    intervals, undetermined parameters) in the report form of
-    :func:`~dampertwin.calibration.uncertainty.summary`, plus each
-    parameter's standard deviation [its unit]. ``jac_error``: an estimate of
-    J's error (directions below it are not resolved)."""
-    from .calibration.uncertainty import analyse, summary
-
-    u = analyse(J, residual, list(names), np.asarray(values, float), jac_error=jac_error)
-    out = summary(u.to_dict())
-    for row in u.table.to_dict(orient="records"):
-        out["parameters"][row["parameter"]]["std"] = row["std (fitted coord.)"]  # coordinates = physical here
-    return out
+from .calibration.uncertainty import gauss_newton_ci  # noqa: E402  (re-exported)
 
 
 def _sha(path: Path) -> str:
@@ -189,153 +127,106 @@ def _read(path, protocol=None) -> pd.DataFrame:
     return read_frame(Path(path), protocol)[0]
 
 
+def _read_all(paths, protocol=None) -> list[pd.DataFrame]:
+    """Every measurement file a fit reads, in one call (one reader)."""
+    return [_read(p, protocol) for p in paths]
+
+
 # ---------------------------------------------------------------- friction fit
 
-def _friction_bounds(df: pd.DataFrame, v: np.ndarray) -> list[dict]:
-    """Default search space from the record's magnitudes (not the damper's)."""
-    fmax = float(np.max(np.abs(df["force [N]"].to_numpy())))
-    vmax = float(np.max(np.abs(v))) or 1.0
-    return [{"name": "F_c", "bounds": [0.0, 1.5 * fmax]}, {"name": "F_s", "bounds": [0.0, 2.0 * fmax]},
-            {"name": "k_b", "bounds": [fmax / 1e-3, fmax / 1e-7], "scale": "log"},
-            {"name": "s2", "bounds": [0.0, 2.0 * fmax / vmax]}]
-
-
-def _friction_specs(items: list, where: str):
-    from .calibration.ga import ParamSpec
-
-    specs = []
-    for i, it in enumerate(items):
-        nm = it.get("name", it.get("key")) if isinstance(it, dict) else None
-        nm = nm.split(".")[-1] if isinstance(nm, str) else nm
-        if nm not in FRICTION_PARAMS:
-            raise FitError(f"{where}: item {i} ({it!r}): unknown friction parameter; expected one of "
-                           f"{', '.join(FRICTION_PARAMS)}")
-        if "bounds" not in it:
-            raise FitError(f"{where}: item {i} ({nm}): friction fits need absolute 'bounds: [lo, hi]'")
-        lo, hi = map(float, it["bounds"])
-        scale = it.get("scale", "lin")
-        if not lo < hi or (scale == "log" and lo <= 0):
-            raise FitError(f"{where}: item {i} ({nm}): bad interval [{lo}, {hi}] for scale {scale}")
-        specs.append(ParamSpec(nm, lo, hi, scale))
-    return specs
-
-
-def coulomb_viscous_fit(v: np.ndarray, F: np.ndarray) -> dict:
-    """Baseline F = F_c sign(v) + c v by linear least squares."""
-    A = np.column_stack([np.sign(v), v])
-    (fc, c), *_ = np.linalg.lstsq(A, F, rcond=None)
-    return {"F_c": float(fc), "c": float(c), "prediction": A @ [fc, c]}
+def _friction_record(path, f: pd.DataFrame, velocity: str) -> dict:
+    for c in ("time [s]", "force [N]"):
+        if c not in f:
+            raise FitError(f"{path}: missing column {c!r} (friction record)")
+    if velocity == "displacement" and "displacement [m]" not in f:
+        raise FitError(f"{path}: --velocity displacement needs a 'displacement [m]' column")
+    rec = {"t": f["time [s]"].to_numpy(float), "F": f["force [N]"].to_numpy(float),
+           "x": f["displacement [m]"].to_numpy(float) if "displacement [m]" in f else None}
+    rec["v"] = record_velocity(f.drop(columns=["velocity [m/s]"]) if velocity == "displacement" and
+                               "velocity [m/s]" in f else f)
+    return rec
 
 
 def fit_friction(data, *, design: Design | str | os.PathLike | None = None, bounds: list[dict] | None = None,
                  predict=(), out: str | os.PathLike | None = None, seed: int = 0, starts: int = 8,
-                 fixed: dict | None = None) -> dict:
-    """Fit the LuGre law to a friction record (``time [s]``, ``displacement
-    [m]``, ``force [N]``, optional ``velocity [m/s]``; force positive
-    opposing positive velocity). ``bounds``: search items (name + bounds
-    [+ scale]); default F_c, F_s, k_b, s2 over ranges set by the record's
-    force and velocity magnitudes. Parameters not searched come from
-    ``fixed``, then from ``design`` (default conf baseline values).
-    Multi-start scipy least squares on the force residual."""
-    from scipy.optimize import least_squares
-    from scipy.stats import qmc
-
+                 fixed: dict | None = None, effects=(), holdout_cycles: int | None = None,
+                 velocity: str = "record") -> dict:
+    """Fit the friction law (:mod:`dampertwin.calibration.friction_fit`) to a
+    friction record (``time [s]``, ``displacement [m]``, ``force [N]``,
+    optional ``velocity [m/s]``; force positive opposing positive velocity).
+    ``bounds``: search items (name + bounds [+ scale]); default from the
+    record's magnitudes. Parameters not searched come from ``fixed``, then
+    from ``design`` (default conf baseline values). ``effects``: library
+    effects added to the law (asymmetric, free_play). ``holdout_cycles``:
+    cycles at the end of the record not fitted (default a third).
+    ``velocity``: 'record' (the velocity column if present) or
+    'displacement' (always differentiate the displacement)."""
     paths = [Path(data)] + [Path(p) for p in predict]
-    frames = [_read(p) for p in paths]
-    for p, f in zip(paths, frames):
-        for c in ("time [s]", "force [N]"):
-            if c not in f:
-                raise FitError(f"{p}: missing column {c!r} (friction record)")
+    frames = _read_all(paths)
     d = design if isinstance(design, Design) else load_design(design or _default_design())
-    base = {k: float(d[FRICTION_KEYS[k]]) for k in FRICTION_PARAMS}
+    base = {k: float(d[_ff.FRICTION_KEYS[k]]) for k in _ff.FRICTION_KEYS}
     base.update({k: float(v) for k, v in (fixed or {}).items()})
-    df = frames[0]
-    t = df["time [s]"].to_numpy(float)
-    v = record_velocity(df)
-    Fm = df["force [N]"].to_numpy(float)
-    specs = _friction_specs(bounds or _friction_bounds(df, v), "friction search space")
-    names = [s.key for s in specs]
-
-    def params(g):
-        return {**base, **{s.key: float(s.to_value(gi)) for s, gi in zip(specs, g)}}
-
-    def resid(g, tt=t, vv=v, FF=Fm):
-        return simulate_friction(tt, vv, **params(g)) - FF
-
-    rng = np.random.default_rng(seed)
-    sampler = qmc.LatinHypercube(d=len(specs), seed=rng)
-    x0s = sampler.random(max(starts, 1))
-    best = None
-    for x0 in x0s:
-        r = least_squares(resid, x0, bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-4, max_nfev=200 * len(specs))
-        if best is None or r.cost < best.cost:
-            best = r
-    p_best = params(best.x)
-    values = np.array([p_best[k] for k in names])
-    # Jacobian in physical units by central differences
-    r0 = resid(best.x)
-    J = np.empty((len(r0), len(names)))
-    for j, k in enumerate(names):
-        h = 1e-4 * max(abs(values[j]), 1e-12)
-        up, dn = dict(p_best), dict(p_best)
-        up[k] += h
-        dn[k] -= h
-        J[:, j] = (simulate_friction(t, v, **up) - simulate_friction(t, v, **dn)) / (2 * h)
-    ci = gauss_newton_ci(J, r0, names, values)
-    cvb = coulomb_viscous_fit(v, Fm)
-    files = {}
-    for p, f, role in zip(paths, frames, ["fitted"] + ["predicted"] * len(predict)):
-        vv = record_velocity(f)
-        FF = f["force [N]"].to_numpy(float)
-        sim = simulate_friction(f["time [s]"].to_numpy(float), vv, **p_best)
-        cv = np.column_stack([np.sign(vv), vv]) @ [cvb["F_c"], cvb["c"]]
-        files[str(p)] = {"role": role, "nrmse": nrmse(FF, sim), "nrmse_coulomb_viscous": nrmse(FF, cv),
-                         "sha256": _sha(p), "samples": len(FF)}
-    baseline = {"model": "F = F_c sign(v) + c v (linear least squares on the fitted file)",
-                "F_c [N]": cvb["F_c"], "c [N*s/m]": cvb["c"], "nrmse": nrmse(Fm, cvb["prediction"])}
-    result = {"submodel": "friction", "model": "LuGre with Stribeck curve, thesis eq. 4.38-4.41 (errata 34)",
-              "objective": {"name": "sum of squared force residuals / 2 [N^2]", "value": float(best.cost)},
-              "parameters": {k: p_best[k] for k in names}, "fixed": {k: base[k] for k in FRICTION_PARAMS
-                                                                    if k not in names},
-              "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs},
-              "uncertainty": ci, "files": files, "baseline": baseline,
-              "nrmse": files[str(paths[0])]["nrmse"], "optimizer": f"scipy least_squares, {len(x0s)} LHS starts"}
+    recs = [_friction_record(p, f, velocity) for p, f in zip(paths, frames)]
+    try:
+        result = _ff.fit_friction_record(recs[0], base, items=bounds, effects=tuple(effects), holdout=holdout_cycles,
+                                         predicted=recs[1:], seed=seed, starts=starts)
+    except _ff.FrictionFitError as e:
+        raise FitError(str(e)) from None
+    sims = result.pop("_sims")
+    files = {str(paths[0]): {"role": "fitted", "nrmse": result["nrmse"], "nrmse_held_out": result["nrmse_held_out"],
+                             "nrmse_coulomb_viscous": result["baseline"]["nrmse"], "sha256": _sha(paths[0]),
+                             "samples": len(recs[0]["F"])}}
+    for p, q in zip(paths[1:], sims["predicted"]):
+        files[str(p)] = {"role": "predicted", **{k: v for k, v in q.items() if k != "_sim"}, "sha256": _sha(p)}
+    result["files"] = files
+    result["velocity"] = "record column" if velocity == "record" and "velocity [m/s]" in frames[0] else \
+        "displacement differentiated"
     if out is not None:
         out = Path(out)
         _write_json(out / "fit.json", result)
-        _friction_plots(out, paths, frames, p_best, cvb)
+        _friction_plots(out, paths, recs, sims, result)
     return result
 
 
-def _friction_plots(out: Path, paths, frames, p, cvb) -> None:
+def _friction_plots(out: Path, paths, recs, sims, result) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    for i, (path, f) in enumerate(zip(paths, frames)):
-        t = f["time [s]"].to_numpy(float)
-        v = record_velocity(f)
-        F = f["force [N]"].to_numpy(float)
-        sim = simulate_friction(t, v, **p)
-        cv = np.column_stack([np.sign(v), v]) @ [cvb["F_c"], cvb["c"]]
-        fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), constrained_layout=True)
-        axes[0].plot(t, F, lw=0.8, label="measured")
-        axes[0].plot(t, sim, "--", lw=0.9, label=f"LuGre (NRMSE {nrmse(F, sim):.3f})")
-        axes[0].plot(t, cv, ":", lw=0.9, label=f"Coulomb + viscous (NRMSE {nrmse(F, cv):.3f})")
+    models = [sims["fitted"]] + [q["_sim"] for q in sims["predicted"]]
+    for i, (path, r, sim) in enumerate(zip(paths, recs, models)):
+        t, v, F = r["t"], r["v"], r["F"]
+        cv = sims["coulomb_viscous"] if i == 0 else _ff.coulomb_viscous(v, {"F_c": result["baseline"]["F_c [N]"],
+                                                                            "c": result["baseline"]["c [N*s/m]"]})
+        held = ~sims["mask"] if i == 0 else np.zeros(len(t), bool)
+        fig, axes = plt.subplots(1, 3, figsize=(16, 4.8), constrained_layout=True)
+        lab = (f"fitted cycles NRMSE {result['nrmse']:.3f}" + (f", held-out {result['nrmse_held_out']:.3f}"
+               if result["nrmse_held_out"] is not None else "")) if i == 0 else \
+            f"NRMSE {result['files'][str(path)]['nrmse']:.3f}"
+        axes[0].plot(t, F, lw=0.7, label="measured")
+        axes[0].plot(t, sim, "--", lw=0.9, label=f"model ({lab})")
+        axes[0].plot(t, cv, ":", lw=0.8, label=f"Coulomb + viscous (NRMSE {_ff.nrmse(F, cv):.3f})")
+        if held.any():
+            axes[0].axvspan(t[held][0], t[-1], color="0.9", zorder=0, label="held-out cycles")
         axes[0].set(xlabel="time [s]", ylabel="force [N]")
-        if "displacement [m]" in f:
-            x = f["displacement [m]"].to_numpy(float) * 1e3
-            axes[1].plot(x, F, lw=0.8, label="measured")
-            axes[1].plot(x, sim, "--", lw=0.9, label="LuGre")
+        if r["x"] is not None:
+            xm = r["x"] * 1e3
+            axes[1].plot(np.where(held, np.nan, xm), F, lw=0.6, color="C0", label="measured, fitted cycles")
+            if held.any():
+                axes[1].plot(np.where(held, xm, np.nan), F, lw=0.6, color="C2", label="measured, held-out cycles")
+            axes[1].plot(r["x"] * 1e3, sim, "--", lw=0.8, color="C1", label="model")
         axes[1].set(xlabel="displacement [mm]", ylabel="force [N]")
-        axes[2].plot(v, F, ".", ms=1.5, label="measured")
-        axes[2].plot(v, sim, ".", ms=1.5, label="LuGre")
+        axes[2].plot(v, F, ".", ms=1.2, label="measured")
+        axes[2].plot(v, sim, ".", ms=1.2, label="model")
         axes[2].set(xlabel="velocity [m/s]", ylabel="force [N]")
         for ax in axes:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
-        fig.suptitle(f"friction fit: {path.name} ({'fitted' if i == 0 else 'predicted'})")
+        flags = "; ".join(h["parameter"] + " on " + h["bound"] + " bound" for h in result["bound_hits"]) \
+            if i == 0 else ""
+        fig.suptitle(f"friction fit: {path.name} ({'fitted' if i == 0 else 'predicted'}); {result['model']}"
+                     + (f"\nFLAG: {flags}" if flags else ""), fontsize=9)
         fig.savefig(out / f"friction_{i}_{path.stem}.png", dpi=100)
         plt.close(fig)
 

@@ -351,3 +351,17 @@ def summary(u: dict) -> dict:
             "undetermined": list(u["undetermined"]), "correlation": u["correlation"],
             "other_optima": len(u.get("other_optima", []))}
 
+
+
+def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], values: np.ndarray,
+                    jac_error: np.ndarray | None = None) -> dict:
+    """Intervals of a fit from its residual Jacobian ``J`` (d residual / d
+    parameter, physical units) at the optimum ``values``: :func:`analyse` in
+    the report form of :func:`summary`, plus each parameter's standard
+    deviation [its unit]. ``jac_error``: an estimate of J's error
+    (directions below it are not resolved)."""
+    u = analyse(J, residual, list(names), np.asarray(values, float), jac_error=jac_error)
+    out = summary(u.to_dict())
+    for row in u.table.to_dict(orient="records"):
+        out["parameters"][row["parameter"]]["std"] = row["std (fitted coord.)"]  # coordinates = physical here
+    return out
