@@ -158,6 +158,12 @@ def _add_import_fit(sub) -> None:
     fit.add_argument("--population", type=int, default=None, help="GA population (default 20)")
     fit.add_argument("--generations", type=int, default=None, help="GA generations (default 15)")
     fit.add_argument("--seed", type=int, default=0)
+    fit.add_argument("--effect", action="append", default=[], choices=("asymmetric", "free_play"),
+                     help="friction: add a library effect to the law (repeatable); the report says whether the "
+                          "held-out cycles support it")
+    fit.add_argument("--holdout-cycles", type=int, default=None, metavar="N",
+                     help="friction: the last N cycles of the record are not fitted, only predicted "
+                          "(default: a third of the cycles)")
 
 
 def _run_import_fit(args) -> int:
@@ -175,10 +181,12 @@ def _run_import_fit(args) -> int:
     from .fitting import FitError, run_fit_cli
 
     try:
-        path = run_fit_cli(args)
+        path, flags = run_fit_cli(args)
     except (FitError, DataError, DesignError) as e:
         print(f"dampertwin fit: {e}", file=sys.stderr)
         return 1
+    for f in flags:
+        print(f"dampertwin fit: warning: {f}", file=sys.stderr)
     print(path)
     return 0
 

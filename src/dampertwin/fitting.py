@@ -558,27 +558,31 @@ def _study_items(fname: str, section: str) -> list:
     return yaml_load(p.read_text())[section]
 
 
-def run_fit_cli(args) -> Path:
-    """``dampertwin fit`` entry: returns the written fit.json path."""
+def run_fit_cli(args) -> tuple[Path, list[str]]:
+    """``dampertwin fit`` entry: returns the written fit.json path and the
+    fit's flags (parameters on a bound, unsupported effects)."""
     cfg = load_search_config(args.bounds)
     if args.bounds:
         cfg["_where"] = str(args.bounds)
     items = _merge_items(cfg.get("parameters"), parse_param_args(args.param)) or None
     kw = dict(design=args.design, bounds=items, predict=args.predict, out=args.out, seed=args.seed)
     ga = dict(config=cfg, population=args.population, generations=args.generations)
+    if args.submodel != "friction" and (args.effect or args.holdout_cycles is not None):
+        raise FitError("--effect and --holdout-cycles apply to friction fits only")
     if args.submodel == "friction":
         fixed = {k: float(v) for k, v in (cfg.get("fixed") or {}).items()}
-        fit_friction(args.data, fixed=fixed, **kw)
+        res = fit_friction(args.data, fixed=fixed, effects=tuple(dict.fromkeys(args.effect)),
+                           holdout_cycles=args.holdout_cycles, **kw)
     elif args.submodel == "valve":
         valve = args.valve or cfg.get("valve")
         if not valve:
             raise FitError("a valve fit needs --valve (or 'valve:' in the bounds file)")
-        fit_valve(args.data, valve, **kw, **ga)
+        res = fit_valve(args.data, valve, **kw, **ga)
     elif args.submodel == "compliance":
-        fit_compliance(args.data, current=args.current, **kw, **ga)
+        res = fit_compliance(args.data, current=args.current, **kw, **ga)
     else:
-        fit_topmount(args.data, **kw, **ga)
-    return Path(args.out) / "fit.json"
+        res = fit_topmount(args.data, **kw, **ga)
+    return Path(args.out) / "fit.json", list(res.get("flags", []))
 
 
 __all__ = ["FitError", "lugre_force", "simulate_friction", "record_velocity", "fit_friction", "fit_valve",
