@@ -265,3 +265,45 @@ def test_sensor_delay_shifts_a_sine_by_the_delay():
         y = sensor_delay(x, d, fs)
         assert np.max(np.abs(y[inner] - np.sin(2 * np.pi * f * (t[inner] - d)))) < 2e-3
     assert sensor_delay(x, 0.0, fs) is x
+
+
+def test_fit_valve_gives_the_study_stage_result(tmp_path):
+    """`dampertwin fit valve --profile ci` and the study's flow-bench stage
+    (calibration.approach1.fit_valve with the stage's arguments: the
+    valves.yaml search space, the profile's GA and polish budgets, the
+    documented bench) give the same values and objective, bit for bit, on
+    the same record and seed (SYNTHETIC record: baseline with a stiffer
+    intake valve)."""
+    from conftest import BASELINE, ROOT
+    from dampertwin.calibration.approach1 import fit_valve
+    from dampertwin.calibration.ga import GASettings
+    from dampertwin.calibration.polish import PolishSettings
+    from dampertwin.design import load, yaml_load_file
+    from dampertwin.excitation import Excitation
+    from dampertwin.io import read_frame
+    from dampertwin.protocols import load_protocol
+    from dampertwin.simulation import simulate
+
+    d = load(BASELINE)
+    t = np.arange(0, 2.001, 1e-3)
+    q = 25.0 / 60000.0 * np.interp(t, [0, 1.0, 2.001], [0.0, 1.0, 0.0])
+    r = simulate(d.with_overrides({"piston_intake.a": 1.3 * d["piston_intake.a"]}),
+                 Excitation.from_samples(t, q, kind="flow"), "valve", bench_valve="piston_intake", rate=1000.0)
+    f = r.to_frame()
+    rec = write_frame(tmp_path / "pi.parquet", pd.DataFrame(
+        {"time [s]": t, "flow [m^3/s]": q, "dp [Pa]": (f["p upstream [Pa]"] - f["p downstream [Pa]"]).to_numpy()[:len(t)]}),
+        {"synthetic": True})
+    prof = yaml_load_file(ROOT / "conf" / "profile" / "ci.yaml")
+    fb = load_protocol(ROOT / "conf" / "test" / "flowbench.yaml")
+    study = fit_valve(d, "piston_intake", read_frame(rec, "flowbench")[0],
+                      yaml_load_file(ROOT / "conf" / "calibration" / "valves.yaml"),
+                      GASettings.from_config(prof["ga"]["valves"]), 7,
+                      bench={"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]},
+                      progress=False, polish_settings=PolishSettings.from_config(prof["polish"]))
+    out = tmp_path / "fit"
+    assert main(["fit", "valve", "--valve", "piston_intake", "--data", str(rec), "--out", str(out),
+                 "--design", str(BASELINE), "--profile", "ci", "--seed", "7"]) == 0
+    doc = json.loads((out / "fit.json").read_text())
+    assert study.polish and doc["polish"]["objective_polished"] == study.best_objective
+    assert doc["parameters"] == study.best
+    assert doc["objective"]["best"] == study.best_objective

@@ -33,12 +33,14 @@ import numpy as np
 import pandas as pd
 
 from .design import Design, load as load_design, yaml_load
+from .calibration.approach1 import _record_input
 from .io import read_frame, runs
 from .calibration import friction_fit as _ff
 from .calibration.friction_fit import coulomb_viscous_fit, nrmse  # noqa: F401  (re-exported)
 from .model.friction_only import simulate_friction  # noqa: F401  (re-exported)
 from .model.rod_friction import lugre
 
+DEFAULT_POLISH = {"starts": 3, "max_nfev": 20}  # least-squares polish after the GA (calibration.polish)
 DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mutation_probability": 10,
               "max_wall_s": 600.0}  # wall-time cap [s] of one population's simulations (issue 13)
 
@@ -294,13 +296,12 @@ def _residual_stack(problem: _Problem, sims, fi: int, row: int) -> np.ndarray:
     return np.concatenate([s[row] - c[1] for s, c in zip(sims[fi], problem.files[fi][1])])
 
 
-def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> tuple[dict, dict]:
+def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> dict:
     """Intervals of ``best`` from the fitted file's residual: Richardson
     central differences (:func:`~dampertwin.calibration.uncertainty.central_jacobian`,
     steps 1e-3 relative, one-sided at a search bound; one batch of 4p + 1
     simulations at the uncertainty's tight tolerance, whose error estimate
-    marks directions the Jacobian cannot resolve), and the simulations of
-    ``best`` at the fit's tolerance (nrmse, plots). Returns (ci, sims)."""
+    marks directions the Jacobian cannot resolve)."""
     from .calibration.polish import UNCERTAINTY_ATOL, UNCERTAINTY_RTOL
     from .calibration.uncertainty import central_jacobian
 
@@ -322,8 +323,7 @@ def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> tuple[dict, dict]
     r0, Ju, E = central_jacobian(batch, x / scale, 1e-3, lo / scale, hi / scale)
     J, E = Ju / scale, E / scale
     ok = np.all(np.isfinite(J), axis=1) & np.all(np.isfinite(E), axis=1) & np.isfinite(r0)
-    ci = gauss_newton_ci(J[ok], r0[ok], keys, x, jac_error=E[ok])
-    return ci, problem.simulate([dict(best)])
+    return gauss_newton_ci(J[ok], r0[ok], keys, x, jac_error=E[ok])
 
 
 def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, settings, seed, extra_meta: dict,
@@ -333,23 +333,39 @@ def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, setting
     keys = [s.key for s in specs]
     x0 = {k: problem.nominal(k) for k in keys}
     res = run_ga(specs, Evaluator(problem.objective(keys)), settings, seed, x0=x0, label=label)
-    ci, sims = _jacobian_ci(problem, dict(res.best), specs)
+    ci = _jacobian_ci(problem, dict(res.best), specs)
+    return _report(problem, res, specs, ci, out, submodel, settings, seed, plot_fn, extra_meta, fixed_overrides)
+
+
+def _report(problem: _Problem, res, specs, ci: dict, out, submodel: str, settings, seed, plot_fn, extra_meta: dict,
+            fixed_overrides: dict | None = None) -> dict:
+    """fit.json of a GA fit: parameters, objective, intervals, NRMSE per
+    file, parameters on a search bound (``bound_hits`` / ``flags``)."""
+    from .calibration.friction_fit import bound_hits
+
+    sims = problem.simulate([dict(res.best)])
     files = {}
     for fi, (path, cases) in enumerate(problem.files):
         meas = np.concatenate([c[1] for c in cases])
         sim = np.concatenate([s[0] for s in sims[fi]])
         files[str(path)] = {"role": "fitted" if fi == 0 else "predicted", "nrmse": nrmse(meas, sim),
                             "sha256": _sha(Path(path)), "records": len(cases), "samples": len(meas)}
-    result = {"submodel": submodel, **extra_meta,
-              "objective": {"name": extra_meta.get("objective_name", "int |measured - simulated| dt"),
-                            "start": res.start_objective, "best": res.best_objective,
+    genes = np.array([s.to_gene(res.best[s.key]) for s in specs])
+    hits = bound_hits(specs, genes, ["user"] * len(specs))
+    meta = dict(extra_meta)
+    obj_name = meta.pop("objective_name", "int |measured - simulated| dt")
+    result = {"submodel": submodel, **meta,
+              "objective": {"name": obj_name, "start": res.start_objective, "best": res.best_objective,
                             "evaluations": res.evaluations, "failed_simulations": res.failed},
-              "parameters": dict(res.best), "overrides": {**(fixed_overrides or {}), **{k: v for k, v in res.best.items() if not k.startswith("sensor.")}},
-              "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs}, "uncertainty": ci, "files": files,
-              "nrmse": files[str(problem.files[0][0])]["nrmse"],
+              "parameters": dict(res.best),
+              "overrides": {**(fixed_overrides or {}), **{k: v for k, v in res.best.items()
+                                                          if not k.startswith("sensor.")}},
+              "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs}, "bound_hits": hits,
+              "flags": [f"{h['parameter']} = {h['value']:.6g} ended on its {h['bound']} search bound "
+                        f"{h['limit']:.6g}: the optimum may lie beyond it" for h in hits],
+              "uncertainty": ci, "files": files, "nrmse": files[str(problem.files[0][0])]["nrmse"],
               "optimizer": f"GA (pygad) population {settings.population}, {settings.generations} generations, "
-                           f"seed {seed}"}
-    result.pop("objective_name", None)
+                           f"seed {seed}" + (", least-squares polish" if res.polish else "")}
     if out is not None:
         out = Path(out)
         _write_json(out / "fit.json", result)
@@ -399,39 +415,74 @@ def _load(design) -> Design:
     return design if isinstance(design, Design) else load_design(design or _default_design())
 
 
+def _flowbench_bench(cfg: dict) -> dict:
+    """The flow bench's upstream volume [m^3] and back pressure [Pa]: the
+    search config's ``bench:``, else the repository's documented bench
+    (conf/test/flowbench.yaml), as the study's flow-bench stage uses."""
+    if cfg.get("bench"):
+        return dict(cfg["bench"])
+    from .config import repo_root
+    from .protocols import load_protocol
+
+    try:
+        fb = load_protocol(repo_root() / "conf" / "test" / "flowbench.yaml")
+    except FileNotFoundError:
+        return {}
+    return {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
+
+
 def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None, predict=(), out=None,
               config: dict | None = None, seed: int = 0, population=None, generations=None) -> dict:
     """Fit one valve's stiffness a, b, c, d (and shim friction F_c) on a
-    flow-bench record (``flow [m^3/s]`` input, ``dp [Pa]`` output, eq. 6.1).
-    Default search space: conf/calibration/valves.yaml's items for the valve
-    kind, unless ``bounds`` / ``config['parameters']`` are given."""
-    from .calibration.approach1 import SHIM_VALVES, _Channel, _record_input
+    flow-bench record (``flow [m^3/s]`` input, ``dp [Pa]`` output, eq. 6.1)
+    by the study's flow-bench fit (:func:`dampertwin.calibration.approach1.fit_valve`:
+    GA, then least-squares polish and the uncertainty at the optimum), so
+    the same record, settings and seed give the study's result. Default
+    search space: conf/calibration/valves.yaml's items for the valve kind,
+    unless ``bounds`` / ``config['parameters']`` are given; GA and polish
+    settings from ``config['ga']`` / ``config['polish']`` (a profile)."""
+    from .calibration.approach1 import SHIM_VALVES, _Channel, fit_valve as study_fit_valve
+    from .calibration.polish import PolishSettings
+    from .calibration.uncertainty import summary
 
     d, cfg = _load(design), dict(config or {})
     if valve not in ("piston_rebound", "piston_intake", "base_compression", "base_intake"):
         raise FitError(f"unknown valve {valve!r}; expected piston_rebound, piston_intake, base_compression, "
                        "base_intake")
-    items = bounds or cfg.get("parameters") or _study_items("valves.yaml", "shim" if valve in SHIM_VALVES
-                                                            else "intake")
+    kind = "shim" if valve in SHIM_VALVES else "intake"
+    items = bounds or cfg.get("parameters") or _study_items("valves.yaml", kind)
     specs = _specs(d, items, f"{valve}.", cfg.get("_where", "valve search space"))
-    cutoff = float(cfg.get("input_cutoff", 20.0))
+    cutoff = float(cfg.get("input_cutoff", _study_doc("valves.yaml").get("input_cutoff", 20.0)))
+    bench = _flowbench_bench(cfg)
+    frames = _read_all([data, *predict], "flowbench")
+    settings = _settings(cfg, population, generations)
+    polish_settings = PolishSettings.from_config(cfg.get("polish") or DEFAULT_POLISH)
+    cal = {kind: [{"key": s.key, "bounds": [s.lo, s.hi], "scale": s.scale} for s in specs], "input_cutoff": cutoff}
+    try:
+        res = study_fit_valve(d, valve, frames[0], cal, settings, seed, bench=bench, progress=False,
+                              polish_settings=polish_settings)
+    except ValueError as e:
+        raise FitError(str(e)) from None
     files = []
-    for p in [data, *predict]:
+    for p, f in zip([data, *predict], frames):
         cases = []
-        for _, g in runs(_read(p, "flowbench")):
+        for _, g in runs(f):
             t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
             cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
         files.append((str(p), cases))
     ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
-    prob = _Problem(d, "valve", ch, files, {"bench": cfg.get("bench")} if cfg.get("bench") else {})
+    prob = _Problem(d, "valve", ch, files, {"bench": bench} if bench else {})
 
     def plots(o, problem, sims):
         _series_plots(o, problem, sims, "dp [Pa]", "valve",
                       x_of=lambda t, ex, extra: (np.interp(t, ex.t0 + ex.dt * np.arange(len(ex.value)), ex.value)
                                                  * 60000.0, "flow [l/min]"))
 
-    return _fit_model(prob, specs, out, f"valve {valve}", "valve", _settings(cfg, population, generations), seed,
-                      {"valve": valve, "objective_name": "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]"}, plots)
+    unc = res.uncertainty
+    ci = summary(unc) if "error" not in unc else {"error": unc["error"]}
+    return _report(prob, res, specs, ci, out, "valve", settings, seed, plots,
+                   {"valve": valve, "objective_name": "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]",
+                    "polish": res.polish, "bench": bench})
 
 
 def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
@@ -546,8 +597,8 @@ def _specs(d: Design, items, prefix: str, where: str, nuisance: dict | None = No
         raise FitError(str(e)) from None
 
 
-def _study_items(fname: str, section: str) -> list:
-    """The study's search space (conf/calibration/<fname>) as the default."""
+def _study_doc(fname: str) -> dict:
+    """The study's calibration config conf/calibration/<fname>."""
     from .config import repo_root
 
     try:
@@ -555,7 +606,25 @@ def _study_items(fname: str, section: str) -> list:
     except FileNotFoundError:
         raise FitError("no --bounds / --param given and no conf/calibration/ here for a default search space") \
             from None
-    return yaml_load(p.read_text())[section]
+    return yaml_load(p.read_text())
+
+
+def _study_items(fname: str, section: str) -> list:
+    """The study's search space (conf/calibration/<fname>) as the default."""
+    return _study_doc(fname)[section]
+
+
+def _profile(name: str) -> dict:
+    """GA and polish budgets of a study profile (conf/profile/<name>.yaml)."""
+    from .config import repo_root
+
+    try:
+        p = repo_root() / "conf" / "profile" / f"{name}.yaml"
+    except FileNotFoundError:
+        raise FitError(f"--profile {name}: no conf/profile/ here (run inside the repository)") from None
+    if not p.is_file():
+        raise FitError(f"--profile {name}: {p} not found")
+    return yaml_load(p.read_text())
 
 
 def run_fit_cli(args) -> tuple[Path, list[str]]:
@@ -564,6 +633,13 @@ def run_fit_cli(args) -> tuple[Path, list[str]]:
     cfg = load_search_config(args.bounds)
     if args.bounds:
         cfg["_where"] = str(args.bounds)
+    if getattr(args, "profile", None):
+        if args.submodel == "friction":
+            raise FitError("--profile sets GA and polish budgets: valve, compliance and topmount fits only")
+        prof = _profile(args.profile)
+        section = {"valve": "valves"}.get(args.submodel, args.submodel)
+        cfg.setdefault("ga", prof["ga"][section])
+        cfg.setdefault("polish", prof.get("polish"))
     items = _merge_items(cfg.get("parameters"), parse_param_args(args.param)) or None
     kw = dict(design=args.design, bounds=items, predict=args.predict, out=args.out, seed=args.seed)
     ga = dict(config=cfg, population=args.population, generations=args.generations)
