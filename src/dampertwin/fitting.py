@@ -482,7 +482,31 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
     ci = summary(unc) if "error" not in unc else {"error": unc["error"]}
     return _report(prob, res, specs, ci, out, "valve", settings, seed, plots,
                    {"valve": valve, "objective_name": "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]",
-                    "polish": res.polish, "bench": bench})
+                    "polish": res.polish, "bench": bench,
+                    "determined": valve_determined(d, valve, res, specs, files[0][1], bench)})
+
+
+def valve_determined(d: Design, valve: str, res, specs, cases, bench: dict) -> dict:
+    """The valve's lift-force curve (eq. 4.19) over the lift range the
+    fitted record reached (the fitted model's largest lift), with its 95 %
+    band from the fit's covariance (:mod:`dampertwin.calibration.identifiability`)."""
+    from .calibration.identifiability import covariance, valve_lift_force
+    from .simulation import simulate_batch
+
+    if "error" in res.uncertainty or not res.uncertainty.get("parameters"):
+        return {"error": res.uncertainty.get("error", "no uncertainty analysis")}
+    fitted = d.with_overrides(res.best)
+    lift = 0.0
+    for t, _, ex, extra in cases:
+        _, ch, status = simulate_batch([fitted], ex, "valve", rate=1.0 / (t[1] - t[0]), duration=t[-1] - t[0],
+                                       channels=["lift [m]"], bench=bench or None, **extra)
+        if status[0] == 0:
+            lift = max(lift, float(np.nanmax(ch["lift [m]"][0])))
+    keys, C, dof = covariance(res.uncertainty, specs)
+    values = {k: float(fitted[f"{valve}.{k}"]) for k in ("F_preload", "a", "b", "c", "d")}
+    return {"quantity": "valve lift-force curve F_k(x) = F_pre + a(e^(bx) - 1) + c(e^(dx) - 1), eq. 4.19",
+            "lift range [m]": [0.0, lift],
+            "curve": valve_lift_force(values, keys, C, dof, lift)}
 
 
 def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
