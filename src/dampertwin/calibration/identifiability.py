@@ -42,6 +42,8 @@ def covariance(unc: dict, specs=None) -> tuple[list[str], np.ndarray, float]:
     coordinates to values (None: the coordinates are physical). Returns
     (keys, C, dof)."""
     rows = unc["parameters"]
+    if isinstance(rows, dict):  # the summary form (gauss_newton_ci): parameter -> entry
+        rows = [{"parameter": k, **v} for k, v in rows.items()]
     keys = [r["parameter"] for r in rows]
     C = np.array(unc["covariance_bounded"], float)
     w = np.array([max(1.0, r.get("sandwich / AR(1)", 1.0)) for r in rows], float)
@@ -52,7 +54,8 @@ def covariance(unc: dict, specs=None) -> tuple[list[str], np.ndarray, float]:
             s = by[r["parameter"]]
             d.append(r["value"] * math.log(s.hi / s.lo) if s.scale == "log" else s.hi - s.lo)
         w = w * np.abs(np.array(d, float))
-    return keys, C * np.outer(w, w), max(float(unc["n_eff"]) - len(keys), 1.0)
+    n_eff = float(unc.get("n_eff", len(keys) + 2))
+    return keys, C * np.outer(w, w), max(n_eff - len(keys), 1.0)
 
 
 def _band(g: np.ndarray, C: np.ndarray, dof: float) -> float:

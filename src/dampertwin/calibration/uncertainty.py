@@ -371,4 +371,6 @@ def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], value
     out = summary(u.to_dict())
     for row in u.table.to_dict(orient="records"):
         out["parameters"][row["parameter"]]["std"] = row["std (fitted coord.)"]  # coordinates = physical here
+        out["parameters"][row["parameter"]]["sandwich / AR(1)"] = row["sandwich / AR(1)"]
+    out["covariance_bounded"] = np.asarray(u.covariance_bounded).tolist()
     return out
