@@ -203,6 +203,20 @@ def test_fit_cli_top_mount_fits_the_load_cell_zero(tmp_path):
     assert doc["parameters"]["sensor.force_offset"] == pytest.approx(6.0, abs=1.5)
     assert doc["parameters"]["top_mount.k0"] == pytest.approx(1.44e6, rel=0.05)
     assert not any(k.startswith("sensor.") for k in doc["overrides"])
+    # what the record determines: the dynamic stiffness at the documented sweep frequencies, whose band
+    # holds the true mount's
+    from conftest import BASELINE
+    from dampertwin.calibration.identifiability import top_mount_dynamic_stiffness
+    from dampertwin.design import load
+
+    rows = doc["determined"]["rows"]
+    assert [r["frequency [Hz]"] for r in rows][:3] == [1.0, 2.0, 5.0]
+    true = top_mount_dynamic_stiffness(load(BASELINE).with_overrides({"top_mount.k0": 1.44e6}), {}, [],
+                                       np.zeros((0, 0)), 10.0, [1.0, 5.0, 20.0], rows[0]["amplitude [m]"])
+    for tr in true:
+        r = next(r for r in rows if r["frequency [Hz]"] == tr["frequency [Hz]"])
+        lo, hi = r["stiffness ci95 [N/m]"]
+        assert lo <= tr["stiffness [N/m]"] <= hi and hi - lo < 0.3 * tr["stiffness [N/m]"]
 
 
 def test_fit_cli_top_mount_default_search_space_runs(tmp_path):

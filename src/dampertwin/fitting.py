@@ -491,12 +491,10 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
 def valve_determined(d: Design, valve: str, res, specs, cases, bench: dict) -> dict:
     """The valve's lift-force curve (eq. 4.19) over the lift range the
     fitted record reached (the fitted model's largest lift), with its 95 %
-    band from the fit's covariance (:mod:`dampertwin.calibration.identifiability`)."""
-    from .calibration.identifiability import covariance, valve_lift_force
+    band (:func:`dampertwin.calibration.identifiability.valve_report`)."""
+    from .calibration.identifiability import valve_report
     from .simulation import simulate_batch
 
-    if "error" in res.uncertainty or not res.uncertainty.get("parameters"):
-        return {"error": res.uncertainty.get("error", "no uncertainty analysis")}
     fitted = d.with_overrides(res.best)
     lift = 0.0
     for t, _, ex, extra in cases:
@@ -504,11 +502,7 @@ def valve_determined(d: Design, valve: str, res, specs, cases, bench: dict) -> d
                                        channels=["lift [m]"], bench=bench or None, **extra)
         if status[0] == 0:
             lift = max(lift, float(np.nanmax(ch["lift [m]"][0])))
-    keys, C, dof = covariance(res.uncertainty, specs)
-    values = {k: float(fitted[f"{valve}.{k}"]) for k in ("F_preload", "a", "b", "c", "d")}
-    return {"quantity": "valve lift-force curve F_k(x) = F_pre + a(e^(bx) - 1) + c(e^(dx) - 1), eq. 4.19",
-            "lift range [m]": [0.0, lift],
-            "curve": valve_lift_force(values, keys, C, dof, lift)}
+    return valve_report(fitted, valve, res.uncertainty, specs, lift)
 
 
 def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
@@ -601,25 +595,19 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
 def top_mount_determined(d: Design, best: dict, ci: dict, where: dict | None = None) -> dict:
     """The fitted top mount's dynamic stiffness |K*| and loss angle at the
     test frequencies (``where``: {frequencies [Hz], amplitude [m]}; default
-    the documented sweep of conf/test/topmount.yaml at 0.1 mm), with 95 %
-    bands from the fit's covariance."""
-    from .calibration.identifiability import covariance, top_mount_dynamic_stiffness
+    the documented sweep of conf/test/topmount.yaml, middle amplitude), with
+    95 % bands from the fit's covariance."""
+    from .calibration.identifiability import sweep_points, top_mount_report
 
-    if "covariance_bounded" not in ci:
-        return {"error": ci.get("error", "no uncertainty analysis")}
     where = dict(where or {})
     if "frequencies" not in where:
         from .config import repo_root
         from .protocols import load_protocol
 
-        sweep = load_protocol(repo_root() / "conf" / "test" / "topmount.yaml")["sweep"]
-        where.setdefault("frequencies", sweep["frequencies"])
-        where.setdefault("amplitude", sorted(sweep["amplitudes"])[len(sweep["amplitudes"]) // 2])
-    keys, C, dof = covariance(ci)
-    rows = top_mount_dynamic_stiffness(d, best, keys, C, dof, [float(f) for f in where["frequencies"]],
-                                       float(where.get("amplitude", 1e-4)))
-    return {"quantity": "top mount dynamic stiffness |K*| and loss angle (first harmonic of a simulated sine)",
-            "amplitude [m]": float(where.get("amplitude", 1e-4)), "rows": rows}
+        f, a = sweep_points(load_protocol(repo_root() / "conf" / "test" / "topmount.yaml"))
+        where.setdefault("frequencies", f)
+        where.setdefault("amplitude", a)
+    return top_mount_report(d, best, ci, None, where["frequencies"], float(where.get("amplitude", 1e-4)))
 
 
 def _documented_force_chain(cfg: dict, protocol_file: str) -> dict:

@@ -127,3 +127,36 @@ def top_mount_dynamic_stiffness(design, best: dict, keys: list[str], C: np.ndarr
                     "stiffness rel. half-width [%]": 100 * hm / mag[0] if mag[0] else math.inf,
                     "loss angle [deg]": float(ang[0]), "loss angle ci95 [deg]": [ang[0] - ha, ang[0] + ha]})
     return out
+
+
+def valve_report(fitted, valve: str, unc: dict, specs, lift_max: float) -> dict:
+    """The report entry of a valve fit: its lift-force curve up to
+    ``lift_max`` [m] (the largest lift of the fitted model on the record)
+    with 95 % bands. ``fitted``: the design with the fitted values; ``unc``
+    / ``specs``: the fit's uncertainty (gene coordinates of ``specs``, or
+    physical ones with ``specs`` None)."""
+    if "error" in unc or not unc.get("parameters") or "covariance_bounded" not in unc:
+        return {"error": unc.get("error", "no uncertainty analysis at the optimum")}
+    keys, C, dof = covariance(unc, specs)
+    values = {k: float(fitted[f"{valve}.{k}"]) for k in VALVE_TERMS}
+    return {"quantity": "valve lift-force curve F_k(x) = F_pre + a(e^(bx) - 1) + c(e^(dx) - 1), eq. 4.19",
+            "lift range [m]": [0.0, float(lift_max)], "curve": valve_lift_force(values, keys, C, dof, lift_max)}
+
+
+def top_mount_report(design, best: dict, unc: dict, specs, frequencies, amplitude: float) -> dict:
+    """The report entry of a top-mount fit: |K*| and loss angle at the test
+    ``frequencies`` [Hz] for a sine of ``amplitude`` [m], with 95 % bands."""
+    if "error" in unc or not unc.get("parameters") or "covariance_bounded" not in unc:
+        return {"error": unc.get("error", "no uncertainty analysis at the optimum")}
+    keys, C, dof = covariance(unc, specs)
+    rows = top_mount_dynamic_stiffness(design, best, keys, C, dof, [float(f) for f in frequencies], float(amplitude))
+    return {"quantity": "top mount dynamic stiffness |K*| and loss angle (first harmonic of a simulated sine)",
+            "amplitude [m]": float(amplitude), "rows": rows}
+
+
+def sweep_points(protocol: dict) -> tuple[list[float], float]:
+    """Test frequencies [Hz] and the middle amplitude [m] of a top-mount
+    protocol's dynamic-stiffness sweep."""
+    sw = protocol["sweep"]
+    amps = sorted(float(a) for a in sw["amplitudes"])
+    return [float(f) for f in sw["frequencies"]], amps[len(amps) // 2]
