@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from dampertwin.cli import main
-from dampertwin.fitting import (FitError, gauss_newton_ci, lugre_force, parse_param_args, simulate_friction,
-                                fit_friction)
+from dampertwin.cli_fit import parse_param_args
+from dampertwin.fitting import FitError, gauss_newton_ci, lugre_force, simulate_friction, fit_friction
 from dampertwin.io import write_frame
 from dampertwin.model.rod_friction import lugre, stribeck
 

@@ -181,7 +181,7 @@ def _run_import_fit(args) -> int:
             print(f"dampertwin import: {e}", file=sys.stderr)
             return 1
         return 0
-    from .fitting import FitError, run_fit_cli
+    from .cli_fit import FitError, run_fit_cli
 
     try:
         path, flags = run_fit_cli(args)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .ga import ParamSpec
+from .ga import FitError, ParamSpec
 from ..model.friction_only import simulate_friction
 
 FRICTION_PARAMS = ("F_c", "F_s", "k_b", "s2", "c_comp", "vd", "a_s", "alpha_s")
@@ -48,8 +48,7 @@ SUPPORT_GAIN = 0.05  # held-out NRMSE rise (relative) without an effect that cou
 HYST = 0.05  # displacement hysteresis of a cycle boundary, fraction of the stroke
 
 
-class FrictionFitError(ValueError):
-    """A friction fit's inputs are unusable; the message names the item."""
+FrictionFitError = FitError  # the project's one fit error (calibration.ga)
 
 
 # ---------------------------------------------------------------- records

@@ -30,7 +30,9 @@ TOP_KEPT = 10  # best distinct members returned (start points of a local polish)
 
 
 class FitError(UserError):
-    """A fit that cannot produce a result (every member infeasible)."""
+    """A fit that cannot run or produce a result: unusable inputs (the
+    message names the file / key / item) or every member infeasible. The
+    one fit error of the project (``dampertwin.fitting.FitError`` is it)."""
 NEAR_SPREAD = 0.1  # gene-space std of the initial members placed around the nominal design
 
 
