@@ -1,8 +1,8 @@
 """The friction fit with the library's effects: the friction-only model's
 free play and asymmetry (limits, passivity), parameter recovery on a
 SYNTHETIC record of known parameters, bound hits reported and data-derived
-bounds widened, and the real BRFD record (CC BY-SA 4.0, ../shared/data)
-fitted to force NRMSE <= 0.08 on fitted and held-out cycles."""
+bounds widened, and the real BRFD record (CC BY-SA 4.0, the worked example's
+copy) fitted to force NRMSE <= 0.08 on fitted and held-out cycles."""
 
 import json
 from pathlib import Path
@@ -21,9 +21,9 @@ from dampertwin.model.friction_only import simulate_friction
 LAW = dict(F_c=20.0, F_s=35.0, k_b=4e5, s2=150.0, c_comp=500.0, vd=0.001, a_s=0.01, alpha_s=2.0)
 FIXED = dict(c_comp=500.0, vd=0.001, a_s=0.01, alpha_s=2.0, v_reg=1e-3)
 EFFECTS = dict(a=-0.2, delta=5e-4)
-BRFD = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "friction-brfd" / \
-    "0.25Hz36lbtension1amplitude.json"
-MAPPING = Path(__file__).resolve().parents[1] / "examples" / "friction-brfd" / "mapping.yaml"
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "friction-brfd"
+BRFD = EXAMPLE / "brfd_0.25Hz_36lb_1in.csv.gz"  # real record, CC BY-SA 4.0 (examples/friction-brfd/README.md)
+MAPPING = EXAMPLE / "mapping.yaml"
 
 
 def _motion(cycles=6, f=0.5, fs=1000.0, amp=0.005):
@@ -106,7 +106,6 @@ def test_a_data_derived_bound_is_widened_until_it_holds_the_optimum():
     assert fit["values"]["k_b"] == pytest.approx(LAW["k_b"], rel=1e-3)
 
 
-@pytest.mark.skipif(not BRFD.is_file(), reason="real BRFD record not present (../shared/data/friction-brfd)")
 def test_real_brfd_record_fitted_and_held_out_within_8_percent(tmp_path):
     """The real friction record (kN forces, asymmetric, free play), imported
     with the worked example's mapping, fitted on its first cycles with both
