@@ -38,12 +38,39 @@ NEAR_SPREAD = 0.1  # gene-space std of the initial members placed around the nom
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """A fitted quantity: design key, search bounds (SI) and gene scale."""
+    """A fitted quantity: design key, search bounds (SI), scale of its
+    normalised coordinate in [0, 1] (the GA's gene, the Gauss-Newton refit's
+    u) and, optionally, its start value. The one parameter spec of the
+    calibration core (the discrepancy refits build theirs with :meth:`auto`)."""
 
     key: str
     lo: float
     hi: float
     scale: str = "lin"  # "lin" | "log" (log needs lo > 0)
+    start: float | None = None  # start value [SI] (None: the design's)
+
+    @classmethod
+    def auto(cls, key: str, lo: float, hi: float, start: float | None = None) -> "ParamSpec":
+        """Logarithmic when the bounds are positive and span > 2 decades."""
+        return cls(key, lo, hi, "log" if lo > 0 and hi / lo > 100 else "lin", start)
+
+    @property
+    def log(self) -> bool:
+        return self.scale == "log"
+
+    def to_u(self, v: float) -> float:
+        """Scalar value -> coordinate in [0, 1] (clipped to the bounds)."""
+        v = min(max(v, self.lo), self.hi)
+        if self.log:
+            return math.log(v / self.lo) / math.log(self.hi / self.lo)
+        return (v - self.lo) / (self.hi - self.lo) if self.hi > self.lo else 0.0
+
+    def to_v(self, u: float) -> float:
+        """Scalar coordinate (clipped to [0, 1]) -> value."""
+        u = min(max(u, 0.0), 1.0)
+        if self.log:
+            return self.lo * (self.hi / self.lo) ** u
+        return self.lo + u * (self.hi - self.lo)
 
     def to_value(self, g):
         g = np.clip(g, 0.0, 1.0)
