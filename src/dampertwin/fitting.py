@@ -287,11 +287,11 @@ def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> dict:
 
 def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, settings, seed, extra_meta: dict,
                plot_fn=None, fixed_overrides: dict | None = None, determined_fn=None) -> dict:
-    from .calibration.ga import Evaluator, run_ga
+    from .calibration.optimisers import run
 
     keys = [s.key for s in specs]
     x0 = {k: problem.nominal(k) for k in keys}
-    res = run_ga(specs, Evaluator(problem.objective(keys)), settings, seed, x0=x0, label=label)
+    res = run(problem.objective(keys), specs, settings, seed=seed, x0=x0, label=label, progress=True)
     ci = _jacobian_ci(problem, dict(res.best), specs)
     if determined_fn is not None:
         extra_meta = {**extra_meta, "determined": determined_fn(res.best, ci)}

@@ -14,8 +14,9 @@ opposing positive velocity).
   ending on a data-derived bound has that bound widened and is refitted
   (:data:`WIDEN_ROUNDS` times); a parameter still on a bound, or on a
   physical / user bound, is listed in ``bound_hits`` and ``flags``;
-- optimiser: multi-start bounded least squares (scipy, Latin-hypercube
-  starts in the unit box of the parameter spec);
+- optimiser: multi-start bounded least squares (the core's
+  :func:`~.optimisers.run` with ``LeastSquaresSettings``: scipy,
+  Latin-hypercube starts in the unit box of the parameter spec);
 - effects: with effects requested, the fit without each of them is also
   run, and an effect is *supported* when dropping it raises the held-out
   NRMSE by more than :data:`SUPPORT_GAIN` (relative).
@@ -166,48 +167,38 @@ def bound_hits(specs: list[ParamSpec], g: np.ndarray, origin: list[str]) -> list
 
 # ---------------------------------------------------------------- optimiser
 
-def _least_squares(resid, n: int, starts: int, seed: int, extra=()) -> object:
-    """Best of bounded least squares from Latin-hypercube starts (and the
-    ``extra`` points) in the unit box."""
-    from scipy.optimize import least_squares
-    from scipy.stats import qmc
-
-    x0s = list(qmc.LatinHypercube(d=n, seed=np.random.default_rng(seed)).random(max(starts, 1))) + list(extra)
-    best = None
-    for x0 in x0s:
-        r = least_squares(resid, np.clip(x0, 0.0, 1.0), bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-4,
-                          max_nfev=200 * n)
-        if best is None or r.cost < best.cost:
-            best = r
-    return best
-
-
 def fit_model(t, v, F, fitted, base: dict, specs: list[ParamSpec], origin: list[str], *, seed: int = 0,
               starts: int = 8) -> dict:
     """Fit ``specs`` on the ``fitted`` samples, widening data-derived bounds
     the optimum sits on. Returns values, final specs, bound hits, cost,
     rounds."""
+    from .optimisers import LeastSquaresSettings, run
+    from .polish import Records
+
     specs = list(specs)
     extra: list = []
     for rnd in range(WIDEN_ROUNDS + 1):
-        def params(g, sp=specs):
-            return {**base, **{s.key: float(s.to_value(gi)) for s, gi in zip(sp, g)}}
+        keys = [s.key for s in specs]
 
-        def resid(g, sp=specs):
-            return (simulate_friction(t, v, **params(g, sp)) - F)[fitted]
+        def residuals(X, keys=keys):
+            """Force residual [N] on the fitted samples of each parameter row."""
+            return np.array([(simulate_friction(t, v, **{**base, **dict(zip(keys, map(float, row)))}) - F)[fitted]
+                             for row in np.atleast_2d(X)])
 
-        best = _least_squares(resid, len(specs), starts, seed + rnd, extra)
-        hits = bound_hits(specs, best.x, origin)
+        res = run(Records(residuals, np.ones(int(np.sum(fitted)))), specs, LeastSquaresSettings(starts),
+                  seed=seed + rnd, extra=extra)
+        genes = res.top[0]
+        hits = bound_hits(specs, genes, origin)
         movable = [h for h in hits if h["kind"] == "data-derived"]
         if not movable or rnd == WIDEN_ROUNDS:
             break
-        values = params(best.x)
+        values = {**base, **res.best}
         for h in movable:
-            j = [s.key for s in specs].index(h["parameter"])
+            j = keys.index(h["parameter"])
             specs[j] = _widened(specs[j], 0 if h["bound"] == "lower" else 1)
         extra = [np.array([s.to_gene(values[s.key]) for s in specs])]  # restart from the optimum too
-    return {"values": params(best.x), "specs": specs, "genes": best.x, "bound_hits": hits,
-            "cost": float(best.cost), "widening_rounds": rnd, "resid": resid}
+    return {"values": {**base, **res.best}, "specs": specs, "genes": genes, "bound_hits": hits,
+            "cost": res.best_objective, "widening_rounds": rnd}
 
 
 def nrmse(measured: np.ndarray, simulated: np.ndarray) -> float:
