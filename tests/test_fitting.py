@@ -116,6 +116,9 @@ def test_study_report_flags_and_html(tmp_path):
         key: {"value": 1.0, "ci95": [-2.0, 4.0], "rel_halfwidth": 3.0, "determined": False,
               "why": "CI half-width 300% of value"},
         key2: {"value": 1.0, "ci95": [0.9, 1.1], "rel_halfwidth": 0.1, "determined": True, "why": ""}}}
+    fits["fits"][name]["determined"] = {"quantity": "valve lift-force curve F_k(x), eq. 4.19",
+                                        "curve": [{"lift [m]": 1e-4, "force [N]": 512.0, "ci95 low [N]": 500.0,
+                                                   "ci95 high [N]": 524.0, "rel. half-width [%]": 2.34}]}
     (tmp_path / "fits.json").write_text(json.dumps(fits))
     # cells well beyond, just beyond and just inside the flag threshold, whatever the committed study says
     t65 = pd.read_parquet(tmp_path / "table_6_5.parquet")
@@ -132,6 +135,8 @@ def test_study_report_flags_and_html(tmp_path):
     flags = text.split("## Flags")[1].split("\n## ")[0]
     assert f"| {name} | 1 of {n} parameters not determined | {key.split('.')[-1]}" in flags
     assert len(flags.splitlines()) < 40  # a short table, not a wall of text
+    det = text.split("## What the data determine")[1].split("\n## ")[0]
+    assert f"### {name}: valve lift-force curve" in det and "| 0.1 | 512 | [500, 524] | 2.34 |" in det
     # every table-6.5 cell beyond the threshold compare used is flagged, and no other (the layout has
     # max and min per half-cycle since issue 14)
     for _, r in t65.iterrows():
