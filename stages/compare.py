@@ -116,7 +116,8 @@ def fit_summary(cfg) -> dict:
                               "objective_best": m["objective_best"], "failed_simulations": m["failed_simulations"],
                               "evaluations": m["evaluations"],
                               "uncertainty": summary(u) if u.get("parameters") else None,
-                              "nuisance": m.get("nuisance", {}), "undetermined": m.get("undetermined")}
+                              "nuisance": m.get("nuisance", {}), "undetermined": m.get("undetermined"),
+                              **({"determined": m["determined"]} if m.get("determined") else {})}
     return fits
 
 

@@ -11,6 +11,7 @@ from _common import (CONF, OUT, baseline, checkpoint, choice, config, measured_d
 from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
+from dampertwin.calibration.identifiability import valve_report
 from dampertwin.design import yaml_load_file
 from dampertwin.calibration.polish import PolishSettings
 from dampertwin.io import read_record
@@ -36,11 +37,14 @@ def main(name: str) -> None:
                     polish_settings=PolishSettings.from_config(cfg.profile.polish))
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
+    run = next(r for r in build_runs(fb) if r.bench_valve == valve)
+    sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate,
+                   bench=bench)
+    # what the record determines: the lift-force curve over the lift range of the test, with its band
+    determined = valve_report(d.with_overrides(res.best), valve, res.uncertainty, res.specs,
+                              float(sim.to_frame()["lift [m]"].max()))
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "Pa*s", d.hash())
-        run = next(r for r in build_runs(fb) if r.bench_valve == valve)
-        sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate,
-                       bench=bench)
+        write_fit(tmp, res, meta, "Pa*s", d.hash(), extra={"determined": determined})
         fig = report.pq_figure({valve: meas}, {valve: sim.to_frame()}, f"{name}: flow bench, measured vs fitted model")
         fig.savefig(tmp / "pq.png", dpi=100)
         plt.close(fig)

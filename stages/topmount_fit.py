@@ -10,6 +10,7 @@ from _common import (CONF, OUT, baseline, checkpoint, choice, config, design_val
 from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
+from dampertwin.calibration.identifiability import sweep_points, top_mount_report
 from dampertwin.design import yaml_load_file
 from dampertwin.calibration.polish import PolishSettings
 from dampertwin.io import read_record, runs
@@ -36,8 +37,11 @@ def main(name: str) -> None:
     best = {**res.best, "top_mount.F_LD": coef}  # sensor.* (nuisance) values are kept out of the overlay
     meta = {"fit": "topmount_fit", "top_mount": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept}
+    # what the record determines: dynamic stiffness and loss angle at the sweep's frequencies, with bands
+    determined = top_mount_report(d.with_overrides({"top_mount.F_LD": coef}), res.best, res.uncertainty, res.specs,
+                                  *sweep_points(proto))
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "N*s", d.hash(), best=best)
+        write_fit(tmp, res, meta, "N*s", d.hash(), best=best, extra={"determined": determined})
         fitted = d.with_overrides(design_values(best))
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
         g = dict(runs(meas))["random"]

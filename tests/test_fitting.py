@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from dampertwin.cli import main
-from dampertwin.fitting import (FitError, gauss_newton_ci, lugre_force, parse_param_args, simulate_friction,
-                                fit_friction)
+from dampertwin.cli_fit import parse_param_args
+from dampertwin.fitting import FitError, gauss_newton_ci, lugre_force, simulate_friction, fit_friction
 from dampertwin.io import write_frame
 from dampertwin.model.rod_friction import lugre, stribeck
 
@@ -117,6 +117,9 @@ def test_study_report_flags_and_html(tmp_path):
         key: {"value": 1.0, "ci95": [-2.0, 4.0], "rel_halfwidth": 3.0, "determined": False,
               "why": "CI half-width 300% of value"},
         key2: {"value": 1.0, "ci95": [0.9, 1.1], "rel_halfwidth": 0.1, "determined": True, "why": ""}}}
+    fits["fits"][name]["determined"] = {"quantity": "valve lift-force curve F_k(x), eq. 4.19",
+                                        "curve": [{"lift [m]": 1e-4, "force [N]": 512.0, "ci95 low [N]": 500.0,
+                                                   "ci95 high [N]": 524.0, "rel. half-width [%]": 2.34}]}
     (tmp_path / "fits.json").write_text(json.dumps(fits))
     # cells well beyond, just beyond and just inside the flag threshold, whatever the committed study says
     t65 = pd.read_parquet(tmp_path / "table_6_5.parquet")
@@ -135,12 +138,18 @@ def test_study_report_flags_and_html(tmp_path):
     text = md.read_text()
     n = len(fits["fits"][name]["values"])
     assert "## Flags" in text
-    assert f"{name}: 1 of {n} parameters not determined by the data: {key} (CI half-width 300% of value)\n" in text
+    flags = text.split("## Flags")[1].split("\n## ")[0]
+    assert f"| {name} | 1 of {n} parameters not determined | {key.split('.')[-1]}" in flags
+    assert len(flags.splitlines()) < 40  # a short table, not a wall of text
+    det = text.split("## What the data determine")[1].split("\n## ")[0]
+    assert f"### {name}: valve lift-force curve" in det and "| 0.1 | 512 | [500, 524] | 2.34 |" in det
     # every table-6.5 cell beyond the threshold compare used is flagged, and no other (the layout has
     # max and min per half-cycle since issue 14)
     for _, r in t65.iterrows():
+        where = f"{r['Design case']}, {float(r['Active valve current [A]']):g} A"
+        row = next((ln for ln in flags.splitlines() if ln.startswith(f"| {where} | abs. diff >")), "")
         for c in cols:
-            assert (f"- {r['Design case']}: {c} = {float(r[c]):+.2f}" in text) == (abs(float(r[c])) > lim), (r, c)
+            assert (f"{c} {float(r[c]):+.2f}" in row) == (abs(float(r[c])) > lim), (r, c)
     assert "![baseline_1.6 monosine](plots/baseline_1.6/monosine.png)" in text
     h = html.read_text()
     assert "<table>" in h
@@ -215,6 +224,20 @@ def test_fit_cli_top_mount_fits_the_load_cell_zero(tmp_path):
     assert doc["parameters"]["sensor.force_offset"] == pytest.approx(6.0, abs=1.5)
     assert doc["parameters"]["top_mount.k0"] == pytest.approx(1.44e6, rel=0.05)
     assert not any(k.startswith("sensor.") for k in doc["overrides"])
+    # what the record determines: the dynamic stiffness at the documented sweep frequencies, whose band
+    # holds the true mount's
+    from conftest import BASELINE
+    from dampertwin.calibration.identifiability import top_mount_dynamic_stiffness
+    from dampertwin.design import load
+
+    rows = doc["determined"]["rows"]
+    assert [r["frequency [Hz]"] for r in rows][:3] == [1.0, 2.0, 5.0]
+    true = top_mount_dynamic_stiffness(load(BASELINE).with_overrides({"top_mount.k0": 1.44e6}), {}, [],
+                                       np.zeros((0, 0)), 10.0, [1.0, 5.0, 20.0], rows[0]["amplitude [m]"])
+    for tr in true:
+        r = next(r for r in rows if r["frequency [Hz]"] == tr["frequency [Hz]"])
+        lo, hi = r["stiffness ci95 [N/m]"]
+        assert lo <= tr["stiffness [N/m]"] <= hi and hi - lo < 0.3 * tr["stiffness [N/m]"]
 
 
 def test_fit_cli_top_mount_default_search_space_runs(tmp_path):
@@ -277,3 +300,45 @@ def test_sensor_delay_shifts_a_sine_by_the_delay():
         y = sensor_delay(x, d, fs)
         assert np.max(np.abs(y[inner] - np.sin(2 * np.pi * f * (t[inner] - d)))) < 2e-3
     assert sensor_delay(x, 0.0, fs) is x
+
+
+def test_fit_valve_gives_the_study_stage_result(tmp_path):
+    """`dampertwin fit valve --profile ci` and the study's flow-bench stage
+    (calibration.approach1.fit_valve with the stage's arguments: the
+    valves.yaml search space, the profile's GA and polish budgets, the
+    documented bench) give the same values and objective, bit for bit, on
+    the same record and seed (SYNTHETIC record: baseline with a stiffer
+    intake valve)."""
+    from conftest import BASELINE, ROOT
+    from dampertwin.calibration.approach1 import fit_valve
+    from dampertwin.calibration.ga import GASettings
+    from dampertwin.calibration.polish import PolishSettings
+    from dampertwin.design import load, yaml_load_file
+    from dampertwin.excitation import Excitation
+    from dampertwin.io import read_frame
+    from dampertwin.protocols import load_protocol
+    from dampertwin.simulation import simulate
+
+    d = load(BASELINE)
+    t = np.arange(0, 2.001, 1e-3)
+    q = 25.0 / 60000.0 * np.interp(t, [0, 1.0, 2.001], [0.0, 1.0, 0.0])
+    r = simulate(d.with_overrides({"piston_intake.a": 1.3 * d["piston_intake.a"]}),
+                 Excitation.from_samples(t, q, kind="flow"), "valve", bench_valve="piston_intake", rate=1000.0)
+    f = r.to_frame()
+    rec = write_frame(tmp_path / "pi.parquet", pd.DataFrame(
+        {"time [s]": t, "flow [m^3/s]": q, "dp [Pa]": (f["p upstream [Pa]"] - f["p downstream [Pa]"]).to_numpy()[:len(t)]}),
+        {"synthetic": True})
+    prof = yaml_load_file(ROOT / "conf" / "profile" / "ci.yaml")
+    fb = load_protocol(ROOT / "conf" / "test" / "flowbench.yaml")
+    study = fit_valve(d, "piston_intake", read_frame(rec, "flowbench")[0],
+                      yaml_load_file(ROOT / "conf" / "calibration" / "valves.yaml"),
+                      GASettings.from_config(prof["ga"]["valves"]), 7,
+                      bench={"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]},
+                      progress=False, polish_settings=PolishSettings.from_config(prof["polish"]))
+    out = tmp_path / "fit"
+    assert main(["fit", "valve", "--valve", "piston_intake", "--data", str(rec), "--out", str(out),
+                 "--design", str(BASELINE), "--profile", "ci", "--seed", "7"]) == 0
+    doc = json.loads((out / "fit.json").read_text())
+    assert study.polish and doc["polish"]["objective_polished"] == study.best_objective
+    assert doc["parameters"] == study.best
+    assert doc["objective"]["best"] == study.best_objective

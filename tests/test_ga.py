@@ -61,6 +61,35 @@ def test_killed_fit_resumes_to_the_same_result(tmp_path):
     assert other.best == fresh.best
 
 
+def test_checkpoints_go_through_the_store_passed_in(tmp_path, monkeypatch):
+    """The GA saves its state to the store it is given, once per generation,
+    and resumes from it; it opens no file itself."""
+    import builtins
+
+    from dampertwin.checkpoint import MemoryStore
+
+    store = MemoryStore()
+    calls = {"n": 0}
+
+    def dying(X):
+        calls["n"] += 1
+        if calls["n"] == 6:
+            raise KeyboardInterrupt
+        return bowl(X)
+
+    real_open = builtins.open
+    monkeypatch.setattr(builtins, "open", lambda *a, **k: (_ for _ in ()).throw(AssertionError(f"open{a}")))
+    monkeypatch.setattr(np, "savez", lambda *a, **k: (_ for _ in ()).throw(AssertionError("np.savez")))
+    with pytest.raises(KeyboardInterrupt):
+        run_ga(SPECS, Evaluator(dying), SETTINGS, seed=7, checkpoint=store, progress=False)
+    assert 1 <= store.saves == int(store.state["gen"]) < SETTINGS.generations  # killed mid-fit
+    resumed = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, checkpoint=store, progress=False)
+    monkeypatch.setattr(builtins, "open", real_open)
+    fresh = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, progress=False)
+    assert resumed.best == fresh.best and resumed.best_objective == fresh.best_objective
+    assert store.saves == SETTINGS.generations
+
+
 def test_dask_scheduler_runs_the_same_code_path():
     """With a scheduler address the population is split into chunks mapped on
     a Dask cluster (here an in-process LocalCluster): same fit, same result."""

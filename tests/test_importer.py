@@ -17,6 +17,7 @@ from dampertwin.io import read_frame, read_meta
     (60.0, "l/min", 1.0e-3, "m^3/s"), (20.0, "degC", 293.15, "K"), (250.0, "ms", 0.25, "s"),
     (150.0, "kPa", 1.5e5, "Pa"), (1.2, "MPa", 1.2e6, "Pa"), (4.0, "m/s^2", 4.0, "m/s^2"), (900.0, "mA", 0.9, "A"),
     (100.0, "mm/s", 0.1, "m/s"), (1.0, "psi", 6894.757293168, "Pa"), (212.0, "degF", 373.15, "K"),
+    (2.0, "kip", 8896.443230521, "N"), (3.0, "in/s", 0.0762, "m/s"),
 ])
 def test_unit_conversion_hand_values(value, unit, si, unit_si):
     x, u = to_si([value], unit)
@@ -65,6 +66,28 @@ def test_import_writes_schema_with_provenance(tmp_path):
     assert meta["imported"] is True and meta["synthetic"] is False
     assert meta["source_sha256"] == hashlib.sha256(src.read_bytes()).hexdigest()
     assert read_meta(out)["units"]["Kraft"] == "kN"
+
+
+def test_import_of_a_json_matrix_names_its_columns(tmp_path):
+    """A JSON object holding a matrix (one row per sample): columns named by
+    the mapping's json: section; a mismatch is an error naming the file."""
+    import json
+
+    t = np.arange(0, 1, 1 / 512)
+    src = tmp_path / "rec.json"
+    src.write_text(json.dumps({"data": np.column_stack([t, np.sin(t), 2 * np.cos(t)]).tolist(), "dt": 1 / 512}))
+    mapping = {"json": {"matrix": "data", "columns": ["t", "x", "F"]},
+               "columns": {"t": {"quantity": "time", "unit": "s"}, "x": {"quantity": "displacement", "unit": "in"},
+                           "F": {"quantity": "force", "unit": "kip"}}}
+    out = import_measurement(src, mapping, tmp_path / "rec.parquet")
+    df, _ = read_frame(out)
+    assert df["displacement [m]"].to_numpy() == pytest.approx(0.0254 * np.sin(t))
+    assert df["force [N]"].iloc[0] == pytest.approx(2 * 4448.2216152605)
+    with pytest.raises(MappingError, match="rec.json.*shape"):
+        import_measurement(src, {**mapping, "json": {"matrix": "data", "columns": ["t", "x"]}}, tmp_path / "b.parquet")
+    with pytest.raises(MappingError, match="no key 'values'"):
+        import_measurement(src, {**mapping, "json": {"matrix": "values", "columns": ["t", "x", "F"]}},
+                           tmp_path / "b.parquet")
 
 
 def test_import_cli_rejects_a_record_failing_the_schema(tmp_path, capsys):

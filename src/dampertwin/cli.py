@@ -236,6 +236,15 @@ def _add_import_fit(sub) -> None:
     fit.add_argument("--population", type=int, default=None, help="GA population (default 20)")
     fit.add_argument("--generations", type=int, default=None, help="GA generations (default 15)")
     fit.add_argument("--seed", type=int, default=0)
+    fit.add_argument("--profile", choices=("ci", "full"), default=None,
+                     help="GA and polish budgets of the study profile conf/profile/PROFILE.yaml (valve, compliance, "
+                          "topmount; --population / --generations still override)")
+    fit.add_argument("--effect", action="append", default=[], choices=("asymmetric", "free_play"),
+                     help="friction: add a library effect to the law (repeatable); the report says whether the "
+                          "held-out cycles support it")
+    fit.add_argument("--holdout-cycles", type=int, default=None, metavar="N",
+                     help="friction: the last N cycles of the record are not fitted, only predicted "
+                          "(default: a third of the cycles)")
 
 
 def _run_import_fit(args) -> int:
@@ -245,9 +254,12 @@ def _run_import_fit(args) -> int:
 
         print(import_measurement(args.src, args.mapping, args.out, protocol=args.protocol))
         return 0
-    from .fitting import run_fit_cli
+    from .cli_fit import run_fit_cli
 
-    print(run_fit_cli(args))
+    path, flags = run_fit_cli(args)
+    for f in flags:
+        print(f"dampertwin fit: warning: {f}", file=sys.stderr)
+    print(path)
     return 0
 
 

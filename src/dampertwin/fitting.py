@@ -1,4 +1,5 @@
-"""One-command submodel fits on a bench record (``dampertwin fit ...``).
+"""One-command submodel fits on a bench record (``dampertwin fit ...``; the
+command line's glue is :mod:`dampertwin.cli_fit`).
 
 - ``fit_valve``      a valve's stiffness (and shim friction) on a flow-bench
                      P-Q record (thesis eq. 6.1), GA of calibration/approach1;
@@ -26,28 +27,27 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from numba import njit
 
 from .design import Design, load as load_design, yaml_load
+from .calibration.approach1 import _record_input
+from .fit_plots import friction_plots, series_plots
 from .io import runs
-from .model.rod_friction import lugre, stribeck
+from .calibration import friction_fit as _ff
+from .calibration.friction_fit import coulomb_viscous_fit, nrmse  # noqa: F401  (re-exported)
+from .model.friction_only import simulate_friction  # noqa: F401  (re-exported)
+from .model.rod_friction import lugre
 
-FRICTION_PARAMS = ("F_c", "F_s", "k_b", "s2", "c_comp", "vd", "a_s", "alpha_s")
-FRICTION_KEYS = {"F_c": "rod_friction.F_c", "F_s": "rod_friction.F_s", "k_b": "rod_friction.k_b",
-                 "s2": "constants.s2", "c_comp": "constants.c_comp", "vd": "constants.vd",
-                 "a_s": "constants.a_s", "alpha_s": "constants.alpha_s"}
+DEFAULT_POLISH = {"starts": 3, "max_nfev": 20}  # least-squares polish after the GA (calibration.polish)
 DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mutation_probability": 10,
               "max_wall_s": 600.0}  # wall-time cap [s] of one population's simulations (issue 13)
 
 
-class FitError(ValueError):
-    """A fit's inputs are unusable; the message names the file / key."""
+from .calibration.ga import FitError  # noqa: E402  (the project's one fit error, re-exported)
 
 
 # ---------------------------------------------------------------- friction model
@@ -59,118 +59,18 @@ def lugre_force(dv, z, *, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s):
     return lugre(float(z), float(dv), k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s)
 
 
-@njit(cache=True)
-def _friction_series(t, v, z0, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s, substeps):
-    """Friction force on the samples of t for the velocity v (linear between
-    samples). The bristle state advances with the exact solution of
-    dz/dt = v - k_b |v| / g(v) z for v frozen over each substep (stable for
-    any stiffness k_b)."""
-    n = len(t)
-    F = np.empty(n)
-    z = z0
-    for i in range(n):
-        dz, F[i] = lugre(z, v[i], k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s)
-        if i == n - 1:
-            break
-        h = (t[i + 1] - t[i]) / substeps
-        for k in range(substeps):
-            vm = v[i] + (v[i + 1] - v[i]) * (k + 0.5) / substeps
-            a = k_b * abs(vm) / stribeck(vm, F_c, F_s, a_s, alpha_s)
-            if a * h < 1e-12:
-                z += vm * h
-            else:
-                zs = vm / a
-                z = zs + (z - zs) * math.exp(-a * h)
-    return F
-
-
-def simulate_friction(t, velocity, *, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s, z0: float = 0.0,
-                      substeps: int = 4) -> np.ndarray:
-    """Friction-only configuration: the LuGre law driven by a prescribed
-    sliding velocity [m/s] on times t [s]. Returns the force [N] per sample."""
-    t = np.ascontiguousarray(t, float)
-    v = np.ascontiguousarray(velocity, float)
-    return _friction_series(t, v, float(z0), float(F_c), float(F_s), float(k_b), float(s2), float(c_comp),
-                            float(vd), float(a_s), float(alpha_s), int(substeps))
-
-
 def record_velocity(df: pd.DataFrame) -> np.ndarray:
     """Sliding velocity [m/s] of a record: the ``velocity [m/s]`` column if
     present, else the displacement differentiated (central differences)."""
-    if "velocity [m/s]" in df:
-        return df["velocity [m/s]"].to_numpy(float)
-    if "displacement [m]" not in df:
-        raise FitError("record has neither 'velocity [m/s]' nor 'displacement [m]'")
-    return np.gradient(df["displacement [m]"].to_numpy(float), df["time [s]"].to_numpy(float))
+    try:
+        return _ff.record_velocity(df["time [s]"].to_numpy(float),
+                                   df["displacement [m]"].to_numpy(float) if "displacement [m]" in df else None,
+                                   df["velocity [m/s]"].to_numpy(float) if "velocity [m/s]" in df else None)
+    except _ff.FrictionFitError as e:
+        raise FitError(str(e)) from None
 
 
-# ---------------------------------------------------------------- search spaces
-
-def parse_param_args(items: list[str]) -> list[dict]:
-    """``name=lo:hi[:log]`` strings -> search-space items (absolute bounds)."""
-    out = []
-    for s in items:
-        try:
-            name, rng = s.split("=", 1)
-            parts = rng.split(":")
-            lo, hi = float(parts[0]), float(parts[1])
-            scale = parts[2] if len(parts) > 2 else "lin"
-        except (ValueError, IndexError):
-            raise FitError(f"--param {s!r}: expected name=lo:hi or name=lo:hi:log") from None
-        key = "key" if "." in name else "name"
-        out.append({key: name.strip(), "bounds": [lo, hi], "scale": scale})
-    return out
-
-
-def load_search_config(path: str | os.PathLike | None) -> dict:
-    if path is None:
-        return {}
-    p = Path(path)
-    if not p.is_file():
-        raise FitError(f"{p}: bounds file not found")
-    doc = yaml_load(p.read_text())
-    if not isinstance(doc, dict):
-        raise FitError(f"{p}: expected a mapping with a 'parameters:' list")
-    return doc
-
-
-def _merge_items(cfg_items: list | None, cli_items: list[dict]) -> list:
-    """Command-line items replace config items of the same parameter."""
-    def ident(it):
-        return it.get("key", it.get("name")) if isinstance(it, dict) else None
-
-    names = {ident(i) for i in cli_items}
-    return [i for i in (cfg_items or []) if ident(i) not in names] + cli_items
-
-
-# ---------------------------------------------------------------- statistics
-
-def nrmse(measured: np.ndarray, simulated: np.ndarray) -> float:
-    """RMS error normalised by the measured range (max - min)."""
-    m, s = np.asarray(measured, float), np.asarray(simulated, float)
-    rng = float(np.ptp(m))
-    if not np.all(np.isfinite(s)) or rng == 0:
-        return float("nan")
-    return float(np.sqrt(np.mean((s - m) ** 2)) / rng)
-
-
-def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], values: np.ndarray,
-                    jac_error: np.ndarray | None = None) -> dict:
-    """Intervals of a fit from its residual Jacobian ``J`` (d residual / d
-    parameter, physical units) at the optimum ``values``: the project's one
-    uncertainty analysis (:func:`dampertwin.calibration.uncertainty.analyse`:
-    Gauss-Newton covariance, AR(1) effective sample size, Student-t 95 %
-    intervals, undetermined parameters) in the report form of
-    :func:`~dampertwin.calibration.uncertainty.summary`, plus each
-    parameter's standard deviation [its unit]. ``jac_error``: an estimate of
-    J's error (directions below it are not resolved)."""
-    from .calibration.uncertainty import analyse, summary
-
-    u = analyse(J, residual, list(names), np.asarray(values, float), jac_error=jac_error)
-    out = summary(u.to_dict())
-    for row in u.table.to_dict(orient="records"):
-        out["parameters"][row["parameter"]]["std"] = row["std (fitted coord.)"]  # coordinates = physical here
-    return out
+from .calibration.uncertainty import gauss_newton_ci  # noqa: E402  (re-exported)
 
 
 def _sha(path: Path) -> str:
@@ -193,155 +93,65 @@ def _read(path, protocol=None, valve=None) -> pd.DataFrame:
     return read_record(Path(path), protocol, valve=valve, require=("time", "force", "displacement|velocity"))[0]
 
 
+def _read_all(paths, protocol=None, valve=None) -> list[pd.DataFrame]:
+    """Every measurement file a fit reads, in one call (one reader)."""
+    return [_read(p, protocol, valve=valve) for p in paths]
+
+
 # ---------------------------------------------------------------- friction fit
 
-def _friction_bounds(df: pd.DataFrame, v: np.ndarray) -> list[dict]:
-    """Default search space from the record's magnitudes (not the damper's)."""
-    fmax = float(np.max(np.abs(df["force [N]"].to_numpy())))
-    vmax = float(np.max(np.abs(v))) or 1.0
-    return [{"name": "F_c", "bounds": [0.0, 1.5 * fmax]}, {"name": "F_s", "bounds": [0.0, 2.0 * fmax]},
-            {"name": "k_b", "bounds": [fmax / 1e-3, fmax / 1e-7], "scale": "log"},
-            {"name": "s2", "bounds": [0.0, 2.0 * fmax / vmax]}]
-
-
-def _friction_specs(items: list, where: str):
-    from .calibration.ga import ParamSpec
-
-    specs = []
-    for i, it in enumerate(items):
-        nm = it.get("name", it.get("key")) if isinstance(it, dict) else None
-        nm = nm.split(".")[-1] if isinstance(nm, str) else nm
-        if nm not in FRICTION_PARAMS:
-            raise FitError(f"{where}: item {i} ({it!r}): unknown friction parameter; expected one of "
-                           f"{', '.join(FRICTION_PARAMS)}")
-        if "bounds" not in it:
-            raise FitError(f"{where}: item {i} ({nm}): friction fits need absolute 'bounds: [lo, hi]'")
-        lo, hi = map(float, it["bounds"])
-        scale = it.get("scale", "lin")
-        if not lo < hi or (scale == "log" and lo <= 0):
-            raise FitError(f"{where}: item {i} ({nm}): bad interval [{lo}, {hi}] for scale {scale}")
-        specs.append(ParamSpec(nm, lo, hi, scale))
-    return specs
-
-
-def coulomb_viscous_fit(v: np.ndarray, F: np.ndarray) -> dict:
-    """Baseline F = F_c sign(v) + c v by linear least squares."""
-    A = np.column_stack([np.sign(v), v])
-    (fc, c), *_ = np.linalg.lstsq(A, F, rcond=None)
-    return {"F_c": float(fc), "c": float(c), "prediction": A @ [fc, c]}
+def _friction_record(path, f: pd.DataFrame, velocity: str) -> dict:
+    for c in ("time [s]", "force [N]"):
+        if c not in f:
+            raise FitError(f"{path}: missing column {c!r} (friction record)")
+    if velocity == "displacement" and "displacement [m]" not in f:
+        raise FitError(f"{path}: --velocity displacement needs a 'displacement [m]' column")
+    rec = {"t": f["time [s]"].to_numpy(float), "F": f["force [N]"].to_numpy(float),
+           "x": f["displacement [m]"].to_numpy(float) if "displacement [m]" in f else None}
+    rec["v"] = record_velocity(f.drop(columns=["velocity [m/s]"]) if velocity == "displacement" and
+                               "velocity [m/s]" in f else f)
+    return rec
 
 
 def fit_friction(data, *, design: Design | str | os.PathLike | None = None, bounds: list[dict] | None = None,
                  predict=(), out: str | os.PathLike | None = None, seed: int = 0, starts: int = 8,
-                 fixed: dict | None = None) -> dict:
-    """Fit the LuGre law to a friction record (``time [s]``, ``displacement
-    [m]``, ``force [N]``, optional ``velocity [m/s]``; force positive
-    opposing positive velocity). ``bounds``: search items (name + bounds
-    [+ scale]); default F_c, F_s, k_b, s2 over ranges set by the record's
-    force and velocity magnitudes. Parameters not searched come from
-    ``fixed``, then from ``design`` (default conf baseline values).
-    Multi-start scipy least squares on the force residual."""
-    from scipy.optimize import least_squares
-    from scipy.stats import qmc
-
+                 fixed: dict | None = None, effects=(), holdout_cycles: int | None = None,
+                 velocity: str = "record") -> dict:
+    """Fit the friction law (:mod:`dampertwin.calibration.friction_fit`) to a
+    friction record (``time [s]``, ``displacement [m]``, ``force [N]``,
+    optional ``velocity [m/s]``; force positive opposing positive velocity).
+    ``bounds``: search items (name + bounds [+ scale]); default from the
+    record's magnitudes. Parameters not searched come from ``fixed``, then
+    from ``design`` (default conf baseline values). ``effects``: library
+    effects added to the law (asymmetric, free_play). ``holdout_cycles``:
+    cycles at the end of the record not fitted (default a third).
+    ``velocity``: 'record' (the velocity column if present) or
+    'displacement' (always differentiate the displacement)."""
     paths = [Path(data)] + [Path(p) for p in predict]
-    frames = [_read(p) for p in paths]
-    for p, f in zip(paths, frames):
-        for c in ("time [s]", "force [N]"):
-            if c not in f:
-                raise FitError(f"{p}: missing column {c!r} (friction record)")
+    frames = _read_all(paths)
     d = design if isinstance(design, Design) else load_design(design or _default_design())
-    base = {k: float(d[FRICTION_KEYS[k]]) for k in FRICTION_PARAMS}
+    base = {k: float(d[_ff.FRICTION_KEYS[k]]) for k in _ff.FRICTION_KEYS}
     base.update({k: float(v) for k, v in (fixed or {}).items()})
-    df = frames[0]
-    t = df["time [s]"].to_numpy(float)
-    v = record_velocity(df)
-    Fm = df["force [N]"].to_numpy(float)
-    specs = _friction_specs(bounds or _friction_bounds(df, v), "friction search space")
-    names = [s.key for s in specs]
-
-    def params(g):
-        return {**base, **{s.key: float(s.to_value(gi)) for s, gi in zip(specs, g)}}
-
-    def resid(g, tt=t, vv=v, FF=Fm):
-        return simulate_friction(tt, vv, **params(g)) - FF
-
-    rng = np.random.default_rng(seed)
-    sampler = qmc.LatinHypercube(d=len(specs), seed=rng)
-    x0s = sampler.random(max(starts, 1))
-    best = None
-    for x0 in x0s:
-        r = least_squares(resid, x0, bounds=(0.0, 1.0), x_scale=1.0, diff_step=1e-4, max_nfev=200 * len(specs))
-        if best is None or r.cost < best.cost:
-            best = r
-    p_best = params(best.x)
-    values = np.array([p_best[k] for k in names])
-    # Jacobian in physical units by central differences
-    r0 = resid(best.x)
-    J = np.empty((len(r0), len(names)))
-    for j, k in enumerate(names):
-        h = 1e-4 * max(abs(values[j]), 1e-12)
-        up, dn = dict(p_best), dict(p_best)
-        up[k] += h
-        dn[k] -= h
-        J[:, j] = (simulate_friction(t, v, **up) - simulate_friction(t, v, **dn)) / (2 * h)
-    ci = gauss_newton_ci(J, r0, names, values)
-    cvb = coulomb_viscous_fit(v, Fm)
-    files = {}
-    for p, f, role in zip(paths, frames, ["fitted"] + ["predicted"] * len(predict)):
-        vv = record_velocity(f)
-        FF = f["force [N]"].to_numpy(float)
-        sim = simulate_friction(f["time [s]"].to_numpy(float), vv, **p_best)
-        cv = np.column_stack([np.sign(vv), vv]) @ [cvb["F_c"], cvb["c"]]
-        files[str(p)] = {"role": role, "nrmse": nrmse(FF, sim), "nrmse_coulomb_viscous": nrmse(FF, cv),
-                         "sha256": _sha(p), "samples": len(FF)}
-    baseline = {"model": "F = F_c sign(v) + c v (linear least squares on the fitted file)",
-                "F_c [N]": cvb["F_c"], "c [N*s/m]": cvb["c"], "nrmse": nrmse(Fm, cvb["prediction"])}
-    result = {"submodel": "friction", "model": "LuGre with Stribeck curve, thesis eq. 4.38-4.41 (errata 34)",
-              "objective": {"name": "sum of squared force residuals / 2 [N^2]", "value": float(best.cost)},
-              "parameters": {k: p_best[k] for k in names}, "fixed": {k: base[k] for k in FRICTION_PARAMS
-                                                                    if k not in names},
-              "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs},
-              "uncertainty": ci, "files": files, "baseline": baseline,
-              "nrmse": files[str(paths[0])]["nrmse"], "optimizer": f"scipy least_squares, {len(x0s)} LHS starts"}
+    recs = [_friction_record(p, f, velocity) for p, f in zip(paths, frames)]
+    try:
+        result = _ff.fit_friction_record(recs[0], base, items=bounds, effects=tuple(effects), holdout=holdout_cycles,
+                                         predicted=recs[1:], seed=seed, starts=starts)
+    except _ff.FrictionFitError as e:
+        raise FitError(str(e)) from None
+    sims = result.pop("_sims")
+    files = {str(paths[0]): {"role": "fitted", "nrmse": result["nrmse"], "nrmse_held_out": result["nrmse_held_out"],
+                             "nrmse_coulomb_viscous": result["baseline"]["nrmse"], "sha256": _sha(paths[0]),
+                             "samples": len(recs[0]["F"])}}
+    for p, q in zip(paths[1:], sims["predicted"]):
+        files[str(p)] = {"role": "predicted", **{k: v for k, v in q.items() if k != "_sim"}, "sha256": _sha(p)}
+    result["files"] = files
+    result["velocity"] = "record column" if velocity == "record" and "velocity [m/s]" in frames[0] else \
+        "displacement differentiated"
     if out is not None:
         out = Path(out)
         _write_json(out / "fit.json", result)
-        _friction_plots(out, paths, frames, p_best, cvb)
+        friction_plots(out, paths, recs, sims, result)
     return result
-
-
-def _friction_plots(out: Path, paths, frames, p, cvb) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    for i, (path, f) in enumerate(zip(paths, frames)):
-        t = f["time [s]"].to_numpy(float)
-        v = record_velocity(f)
-        F = f["force [N]"].to_numpy(float)
-        sim = simulate_friction(t, v, **p)
-        cv = np.column_stack([np.sign(v), v]) @ [cvb["F_c"], cvb["c"]]
-        fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), constrained_layout=True)
-        axes[0].plot(t, F, lw=0.8, label="measured")
-        axes[0].plot(t, sim, "--", lw=0.9, label=f"LuGre (NRMSE {nrmse(F, sim):.3f})")
-        axes[0].plot(t, cv, ":", lw=0.9, label=f"Coulomb + viscous (NRMSE {nrmse(F, cv):.3f})")
-        axes[0].set(xlabel="time [s]", ylabel="force [N]")
-        if "displacement [m]" in f:
-            x = f["displacement [m]"].to_numpy(float) * 1e3
-            axes[1].plot(x, F, lw=0.8, label="measured")
-            axes[1].plot(x, sim, "--", lw=0.9, label="LuGre")
-        axes[1].set(xlabel="displacement [mm]", ylabel="force [N]")
-        axes[2].plot(v, F, ".", ms=1.5, label="measured")
-        axes[2].plot(v, sim, ".", ms=1.5, label="LuGre")
-        axes[2].set(xlabel="velocity [m/s]", ylabel="force [N]")
-        for ax in axes:
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize=8)
-        fig.suptitle(f"friction fit: {path.name} ({'fitted' if i == 0 else 'predicted'})")
-        fig.savefig(out / f"friction_{i}_{path.stem}.png", dpi=100)
-        plt.close(fig)
 
 
 # ---------------------------------------------------------------- model-based fits (GA)
@@ -407,13 +217,12 @@ def _residual_stack(problem: _Problem, sims, fi: int, row: int) -> np.ndarray:
     return np.concatenate([s[row] - c[1] for s, c in zip(sims[fi], problem.files[fi][1])])
 
 
-def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> tuple[dict, dict]:
+def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> dict:
     """Intervals of ``best`` from the fitted file's residual: Richardson
     central differences (:func:`~dampertwin.calibration.uncertainty.central_jacobian`,
     steps 1e-3 relative, one-sided at a search bound; one batch of 4p + 1
     simulations at the uncertainty's tight tolerance, whose error estimate
-    marks directions the Jacobian cannot resolve), and the simulations of
-    ``best`` at the fit's tolerance (nrmse, plots). Returns (ci, sims)."""
+    marks directions the Jacobian cannot resolve)."""
     from .calibration.polish import UNCERTAINTY_ATOL, UNCERTAINTY_RTOL
     from .calibration.uncertainty import central_jacobian
 
@@ -435,66 +244,57 @@ def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> tuple[dict, dict]
     r0, Ju, E = central_jacobian(batch, x / scale, 1e-3, lo / scale, hi / scale)
     J, E = Ju / scale, E / scale
     ok = np.all(np.isfinite(J), axis=1) & np.all(np.isfinite(E), axis=1) & np.isfinite(r0)
-    ci = gauss_newton_ci(J[ok], r0[ok], keys, x, jac_error=E[ok])
-    return ci, problem.simulate([dict(best)])
+    return gauss_newton_ci(J[ok], r0[ok], keys, x, jac_error=E[ok])
 
 
 def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, settings, seed, extra_meta: dict,
-               plot_fn=None, fixed_overrides: dict | None = None) -> dict:
-    from .calibration.ga import Evaluator, run_ga
+               plot_fn=None, fixed_overrides: dict | None = None, determined_fn=None) -> dict:
+    from .calibration.optimisers import run
 
     keys = [s.key for s in specs]
     x0 = {k: problem.nominal(k) for k in keys}
-    res = run_ga(specs, Evaluator(problem.objective(keys)), settings, seed, x0=x0, label=label)
-    ci, sims = _jacobian_ci(problem, dict(res.best), specs)
+    res = run(problem.objective(keys), specs, settings, seed=seed, x0=x0, label=label, progress=True)
+    ci = _jacobian_ci(problem, dict(res.best), specs)
+    if determined_fn is not None:
+        extra_meta = {**extra_meta, "determined": determined_fn(res.best, ci)}
+    return _report(problem, res, specs, ci, out, submodel, settings, seed, plot_fn, extra_meta, fixed_overrides)
+
+
+def _report(problem: _Problem, res, specs, ci: dict, out, submodel: str, settings, seed, plot_fn, extra_meta: dict,
+            fixed_overrides: dict | None = None) -> dict:
+    """fit.json of a GA fit: parameters, objective, intervals, NRMSE per
+    file, parameters on a search bound (``bound_hits`` / ``flags``)."""
+    from .calibration.friction_fit import bound_hits
+
+    sims = problem.simulate([dict(res.best)])
     files = {}
     for fi, (path, cases) in enumerate(problem.files):
         meas = np.concatenate([c[1] for c in cases])
         sim = np.concatenate([s[0] for s in sims[fi]])
         files[str(path)] = {"role": "fitted" if fi == 0 else "predicted", "nrmse": nrmse(meas, sim),
                             "sha256": _sha(Path(path)), "records": len(cases), "samples": len(meas)}
-    result = {"submodel": submodel, **extra_meta,
-              "objective": {"name": extra_meta.get("objective_name", "int |measured - simulated| dt"),
-                            "start": res.start_objective, "best": res.best_objective,
+    genes = np.array([s.to_gene(res.best[s.key]) for s in specs])
+    hits = bound_hits(specs, genes, ["user"] * len(specs))
+    meta = dict(extra_meta)
+    obj_name = meta.pop("objective_name", "int |measured - simulated| dt")
+    result = {"submodel": submodel, **meta,
+              "objective": {"name": obj_name, "start": res.start_objective, "best": res.best_objective,
                             "evaluations": res.evaluations, "failed_simulations": res.failed},
-              "parameters": dict(res.best), "overrides": {**(fixed_overrides or {}), **{k: v for k, v in res.best.items() if not k.startswith("sensor.")}},
-              "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs}, "uncertainty": ci, "files": files,
-              "nrmse": files[str(problem.files[0][0])]["nrmse"],
+              "parameters": dict(res.best),
+              "overrides": {**(fixed_overrides or {}), **{k: v for k, v in res.best.items()
+                                                          if not k.startswith("sensor.")}},
+              "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs}, "bound_hits": hits,
+              "flags": [f"{h['parameter']} = {h['value']:.6g} ended on its {h['bound']} search bound "
+                        f"{h['limit']:.6g}: the optimum may lie beyond it" for h in hits],
+              "uncertainty": ci, "files": files, "nrmse": files[str(problem.files[0][0])]["nrmse"],
               "optimizer": f"GA (pygad) population {settings.population}, {settings.generations} generations, "
-                           f"seed {seed}"}
-    result.pop("objective_name", None)
+                           f"seed {seed}" + (", least-squares polish" if res.polish else "")}
     if out is not None:
         out = Path(out)
         _write_json(out / "fit.json", result)
         if plot_fn is not None:
             plot_fn(out, problem, sims)
     return result
-
-
-def _series_plots(out: Path, problem: _Problem, sims, ylabel: str, name: str, x_of=None) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    for fi, (path, cases) in enumerate(problem.files):
-        k = len(cases)
-        fig, axes = plt.subplots(k, 1, figsize=(11, 3.2 * k), squeeze=False, constrained_layout=True)
-        for ax, (t, meas, ex, extra), s in zip(axes[:, 0], cases, sims[fi]):
-            if x_of is None:
-                ax.plot(t, meas, lw=0.8, label="measured")
-                ax.plot(t, s[0], "--", lw=0.9, label=f"fitted (NRMSE {nrmse(meas, s[0]):.3f})")
-                ax.set(xlabel="time [s]", ylabel=ylabel)
-            else:
-                x, xl = x_of(t, ex, extra)
-                ax.plot(x, meas, lw=0.8, label="measured")
-                ax.plot(x, s[0], "--", lw=0.9, label=f"fitted (NRMSE {nrmse(meas, s[0]):.3f})")
-                ax.set(xlabel=xl, ylabel=ylabel)
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize=8)
-        fig.suptitle(f"{name} fit: {Path(path).name} ({'fitted' if fi == 0 else 'predicted'})")
-        fig.savefig(out / f"{name}_{fi}_{Path(path).stem}.png", dpi=100)
-        plt.close(fig)
 
 
 def _settings(cfg: dict, population=None, generations=None):
@@ -512,39 +312,92 @@ def _load(design) -> Design:
     return design if isinstance(design, Design) else load_design(design or _default_design())
 
 
+def _flowbench_bench(cfg: dict) -> dict:
+    """The flow bench's upstream volume [m^3] and back pressure [Pa]: the
+    search config's ``bench:``, else the repository's documented bench
+    (conf/test/flowbench.yaml), as the study's flow-bench stage uses."""
+    if cfg.get("bench"):
+        return dict(cfg["bench"])
+    from .config import repo_root
+    from .protocols import load_protocol
+
+    try:
+        fb = load_protocol(repo_root() / "conf" / "test" / "flowbench.yaml")
+    except FileNotFoundError:
+        return {}
+    return {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
+
+
 def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None, predict=(), out=None,
               config: dict | None = None, seed: int = 0, population=None, generations=None) -> dict:
     """Fit one valve's stiffness a, b, c, d (and shim friction F_c) on a
-    flow-bench record (``flow [m^3/s]`` input, ``dp [Pa]`` output, eq. 6.1).
-    Default search space: conf/calibration/valves.yaml's items for the valve
-    kind, unless ``bounds`` / ``config['parameters']`` are given."""
-    from .calibration.approach1 import SHIM_VALVES, _Channel, _record_input
+    flow-bench record (``flow [m^3/s]`` input, ``dp [Pa]`` output, eq. 6.1)
+    by the study's flow-bench fit (:func:`dampertwin.calibration.approach1.fit_valve`:
+    GA, then least-squares polish and the uncertainty at the optimum), so
+    the same record, settings and seed give the study's result. Default
+    search space: conf/calibration/valves.yaml's items for the valve kind,
+    unless ``bounds`` / ``config['parameters']`` are given; GA and polish
+    settings from ``config['ga']`` / ``config['polish']`` (a profile)."""
+    from .calibration.approach1 import SHIM_VALVES, _Channel, fit_valve as study_fit_valve
+    from .calibration.polish import PolishSettings
+    from .calibration.uncertainty import summary
 
     d, cfg = _load(design), dict(config or {})
     if valve not in ("piston_rebound", "piston_intake", "base_compression", "base_intake"):
         raise FitError(f"unknown valve {valve!r}; expected piston_rebound, piston_intake, base_compression, "
                        "base_intake")
-    items = bounds or cfg.get("parameters") or _study_items("valves.yaml", "shim" if valve in SHIM_VALVES
-                                                            else "intake")
+    kind = "shim" if valve in SHIM_VALVES else "intake"
+    items = bounds or cfg.get("parameters") or _study_items("valves.yaml", kind)
     specs = _specs(d, items, f"{valve}.", cfg.get("_where", "valve search space"))
-    cutoff = float(cfg.get("input_cutoff", 20.0))
+    cutoff = float(cfg.get("input_cutoff", _study_doc("valves.yaml").get("input_cutoff", 20.0)))
+    bench = _flowbench_bench(cfg)
+    frames = _read_all([data, *predict], "flowbench", valve=valve)
+    settings = _settings(cfg, population, generations)
+    polish_settings = PolishSettings.from_config(cfg.get("polish") or DEFAULT_POLISH)
+    cal = {kind: [{"key": s.key, "bounds": [s.lo, s.hi], "scale": s.scale} for s in specs], "input_cutoff": cutoff}
+    try:
+        res = study_fit_valve(d, valve, frames[0], cal, settings, seed, bench=bench, progress=False,
+                              polish_settings=polish_settings)
+    except ValueError as e:
+        raise FitError(str(e)) from None
     files = []
-    for p in [data, *predict]:
+    for p, f in zip([data, *predict], frames):
         cases = []
-        for _, g in runs(_read(p, "flowbench", valve=valve)):
+        for _, g in runs(f):
             t, ex = _record_input(g, "flow [m^3/s]", "flow", cutoff)
             cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
         files.append((str(p), cases))
     ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"), lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
-    prob = _Problem(d, "valve", ch, files, {"bench": cfg.get("bench")} if cfg.get("bench") else {})
+    prob = _Problem(d, "valve", ch, files, {"bench": bench} if bench else {})
 
     def plots(o, problem, sims):
-        _series_plots(o, problem, sims, "dp [Pa]", "valve",
+        series_plots(o, problem, sims, "dp [Pa]", "valve",
                       x_of=lambda t, ex, extra: (np.interp(t, ex.t0 + ex.dt * np.arange(len(ex.value)), ex.value)
                                                  * 60000.0, "flow [l/min]"))
 
-    return _fit_model(prob, specs, out, f"valve {valve}", "valve", _settings(cfg, population, generations), seed,
-                      {"valve": valve, "objective_name": "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]"}, plots)
+    unc = res.uncertainty
+    ci = summary(unc) if "error" not in unc else {"error": unc["error"]}
+    return _report(prob, res, specs, ci, out, "valve", settings, seed, plots,
+                   {"valve": valve, "objective_name": "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]",
+                    "polish": res.polish, "bench": bench,
+                    "determined": valve_determined(d, valve, res, specs, files[0][1], bench)})
+
+
+def valve_determined(d: Design, valve: str, res, specs, cases, bench: dict) -> dict:
+    """The valve's lift-force curve (eq. 4.19) over the lift range the
+    fitted record reached (the fitted model's largest lift), with its 95 %
+    band (:func:`dampertwin.calibration.identifiability.valve_report`)."""
+    from .calibration.identifiability import valve_report
+    from .simulation import simulate_batch
+
+    fitted = d.with_overrides(res.best)
+    lift = 0.0
+    for t, _, ex, extra in cases:
+        _, ch, status = simulate_batch([fitted], ex, "valve", rate=1.0 / (t[1] - t[0]), duration=t[-1] - t[0],
+                                       channels=["lift [m]"], bench=bench or None, **extra)
+        if status[0] == 0:
+            lift = max(lift, float(np.nanmax(ch["lift [m]"][0])))
+    return valve_report(fitted, valve, res.uncertainty, specs, lift)
 
 
 def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
@@ -571,7 +424,7 @@ def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, conf
     prob = _Problem(d, "damper", ch, files, {}, nuis)
 
     def plots(o, problem, sims):
-        _series_plots(o, problem, sims, "rod force [N]", "compliance")
+        series_plots(o, problem, sims, "rod force [N]", "compliance")
 
     return _fit_model(prob, specs, out, "compliance", "compliance", _settings(cfg, population, generations), seed,
                       {"objective_name": "eq. 6.2 int |F_test - F_sim| dt [N*s]"}, plots)
@@ -624,11 +477,32 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
     prob = _Problem(d, "topmount", ch, files, {}, nuis)
 
     def plots(o, problem, sims):
-        _series_plots(o, problem, sims, "top mount force [N]", "topmount")
+        series_plots(o, problem, sims, "top mount force [N]", "topmount")
+
+    def determined(best, ci):
+        return top_mount_determined(d, best, ci, cfg.get("determined"))
 
     return _fit_model(prob, specs, out, "top mount", "topmount", _settings(cfg, population, generations), seed,
                       {"static_curve": kept, "objective_name": "eq. 6.3 int |F_test - F_sim| dt [N*s]"}, plots,
-                      fixed_overrides=fixed)
+                      fixed_overrides=fixed, determined_fn=determined)
+
+
+def top_mount_determined(d: Design, best: dict, ci: dict, where: dict | None = None) -> dict:
+    """The fitted top mount's dynamic stiffness |K*| and loss angle at the
+    test frequencies (``where``: {frequencies [Hz], amplitude [m]}; default
+    the documented sweep of conf/test/topmount.yaml, middle amplitude), with
+    95 % bands from the fit's covariance."""
+    from .calibration.identifiability import sweep_points, top_mount_report
+
+    where = dict(where or {})
+    if "frequencies" not in where:
+        from .config import repo_root
+        from .protocols import load_protocol
+
+        f, a = sweep_points(load_protocol(repo_root() / "conf" / "test" / "topmount.yaml"))
+        where.setdefault("frequencies", f)
+        where.setdefault("amplitude", a)
+    return top_mount_report(d, best, ci, None, where["frequencies"], float(where.get("amplitude", 1e-4)))
 
 
 def _documented_force_chain(cfg: dict, protocol_file: str) -> dict:
@@ -659,8 +533,8 @@ def _specs(d: Design, items, prefix: str, where: str, nuisance: dict | None = No
         raise FitError(str(e)) from None
 
 
-def _study_items(fname: str, section: str) -> list:
-    """The study's search space (conf/calibration/<fname>) as the default."""
+def _study_doc(fname: str) -> dict:
+    """The study's calibration config conf/calibration/<fname>."""
     from .config import repo_root
 
     try:
@@ -668,32 +542,13 @@ def _study_items(fname: str, section: str) -> list:
     except FileNotFoundError:
         raise FitError("no --bounds / --param given and no conf/calibration/ here for a default search space") \
             from None
-    return yaml_load(p.read_text())[section]
+    return yaml_load(p.read_text())
 
 
-def run_fit_cli(args) -> Path:
-    """``dampertwin fit`` entry: returns the written fit.json path."""
-    cfg = load_search_config(args.bounds)
-    if args.bounds:
-        cfg["_where"] = str(args.bounds)
-    items = _merge_items(cfg.get("parameters"), parse_param_args(args.param)) or None
-    kw = dict(design=args.design, bounds=items, predict=args.predict, out=args.out, seed=args.seed)
-    ga = dict(config=cfg, population=args.population, generations=args.generations)
-    if args.submodel == "friction":
-        fixed = {k: float(v) for k, v in (cfg.get("fixed") or {}).items()}
-        fit_friction(args.data, fixed=fixed, **kw)
-    elif args.submodel == "valve":
-        valve = args.valve or cfg.get("valve")
-        if not valve:
-            raise FitError("a valve fit needs --valve (or 'valve:' in the bounds file)")
-        fit_valve(args.data, valve, **kw, **ga)
-    elif args.submodel == "compliance":
-        fit_compliance(args.data, current=args.current, **kw, **ga)
-    else:
-        fit_topmount(args.data, **kw, **ga)
-    return Path(args.out) / "fit.json"
+def _study_items(fname: str, section: str) -> list:
+    """The study's search space (conf/calibration/<fname>) as the default."""
+    return _study_doc(fname)[section]
 
 
 __all__ = ["FitError", "lugre_force", "simulate_friction", "record_velocity", "fit_friction", "fit_valve",
-           "fit_compliance", "fit_topmount", "coulomb_viscous_fit", "nrmse", "gauss_newton_ci",
-           "parse_param_args"]
+           "fit_compliance", "fit_topmount", "coulomb_viscous_fit", "nrmse", "gauss_newton_ci"]

@@ -17,6 +17,10 @@ its unit::
     csv: {sep: ";", decimal: ","} # optional: pandas.read_csv keywords
     time_offset: true             # optional: shift time to start at 0
 
+A JSON source holding a matrix (one row per sample) names its columns::
+
+    json: {matrix: data, columns: [Zeit, Weg, Kraft]}   # key of the matrix, its column names
+
     dampertwin import --map mapping.yaml rig.csv --out data/own/monosine/baseline_1.6.parquet
 """
 
@@ -46,7 +50,9 @@ UNIT_TABLE: dict[str, tuple[str, float, float]] = {
     # acceleration
     "m/s^2": ("m/s^2", 1.0, 0.0), "m/s2": ("m/s^2", 1.0, 0.0), "mm/s^2": ("m/s^2", 1e-3, 0.0), "g": ("m/s^2", G0, 0.0),
     # force
+    "in/s": ("m/s", 0.0254, 0.0),
     "N": ("N", 1.0, 0.0), "kN": ("N", 1e3, 0.0), "daN": ("N", 10.0, 0.0), "lbf": ("N", 4.4482216152605, 0.0),
+    "kip": ("N", 4448.2216152605, 0.0),
     # pressure (absolute unless the mapping says gauge: true)
     "Pa": ("Pa", 1.0, 0.0), "kPa": ("Pa", 1e3, 0.0), "MPa": ("Pa", 1e6, 0.0), "bar": ("Pa", 1e5, 0.0),
     "mbar": ("Pa", 100.0, 0.0), "psi": ("Pa", 6894.757293168, 0.0),
@@ -59,7 +65,7 @@ UNIT_TABLE: dict[str, tuple[str, float, float]] = {
     "Hz": ("Hz", 1.0, 0.0), "kHz": ("Hz", 1e3, 0.0), "-": ("-", 1.0, 0.0),
 }
 ALIASES = {"µm": "um", "μm": "um", "µs": "us", "m/s²": "m/s^2", "°C": "degC", "C": "degC", "°F": "degF",
-           "L/min": "l/min", "lpm": "l/min", "L/s": "l/s", "ccm/s": "cm^3/s", "G": "g"}
+           "L/min": "l/min", "lb": "lbf", "kips": "kip", "ips": "in/s", "lpm": "l/min", "L/s": "l/s", "ccm/s": "cm^3/s", "G": "g"}
 P_ATM = 101325.0  # [Pa] added to gauge pressures
 
 
@@ -90,8 +96,35 @@ def file_sha256(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def _read_source(src: Path, csv_kw: dict) -> pd.DataFrame:
-    """The source table through the measurement reader's file checks (size limit, readable, not empty)."""
+def _read_json_matrix(src: Path, spec) -> pd.DataFrame:
+    """A JSON object holding a matrix (list of rows) under ``spec['matrix']``,
+    columns named by ``spec['columns']``."""
+    import json
+
+    if not isinstance(spec, dict) or "matrix" not in spec or not isinstance(spec.get("columns"), list):
+        raise MappingError(f"{src}: a JSON source needs 'json: {{matrix: KEY, columns: [NAME, ...]}}' in the mapping")
+    doc = json.loads(src.read_text())
+    key, names = spec["matrix"], [str(c) for c in spec["columns"]]
+    if not isinstance(doc, dict) or key not in doc:
+        raise MappingError(f"{src}: no key {key!r} (keys: {', '.join(map(str, doc)) if isinstance(doc, dict) else '-'})")
+    try:
+        a = np.asarray(doc[key], dtype=float)
+    except (TypeError, ValueError):
+        raise MappingError(f"{src}: {key!r} is not a numeric matrix (one row per sample)") from None
+    if a.ndim != 2 or a.shape[1] != len(names):
+        raise MappingError(f"{src}: {key!r} has shape {a.shape}; the mapping names {len(names)} columns")
+    return pd.DataFrame(a, columns=names)
+
+
+def _read_source(src: Path, csv_kw: dict, json_spec=None) -> pd.DataFrame:
+    """The source table through the measurement reader's file checks (size limit, readable, not empty);
+    a JSON matrix (``json:`` in the mapping) after the same file checks."""
+    if src.suffix == ".json":
+        io.check_file(src, (".json",))
+        df = _read_json_matrix(src, json_spec)
+        if len(df) == 0:
+            raise MappingError(f"{src}: the matrix has no rows; expected a record")
+        return df
     return io.read_table(src, csv_kw)[0]
 
 
@@ -173,7 +206,7 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
 
 def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike, out: str | os.PathLike, *,
                        protocol: str | None = None) -> Path:
-    """Convert ``src`` (CSV / Parquet) with ``mapping`` (dict or YAML path) and
+    """Convert ``src`` (CSV / Parquet / JSON matrix) with ``mapping`` (dict or YAML path) and
     write ``out`` (Parquet, project schema). ``protocol`` (default: the
     mapping's ``protocol`` or the parent folder name of ``out`` when it is a
     known test) selects the checks of ``io.read_record`` (rate, duration,
@@ -195,14 +228,15 @@ def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike
             raise MappingError(f"{map_where}: expected a mapping with a 'columns:' section")
     if out.suffix != ".parquet":
         raise MappingError(f"{out}: output must be a .parquet file")
-    for key in ("protocol", "csv"):
+    for key in ("protocol", "csv", "json"):
         if mapping.get(key) is not None and not isinstance(mapping[key], str if key == "protocol" else dict):
             raise MappingError(f"{map_where}: {key}: {mapping[key]!r}; expected "
-                               + ("a test name (conf/test/<test>.yaml)" if key == "protocol" else "a mapping of "
-                                  "pandas.read_csv keywords"))
+                               + {"protocol": "a test name (conf/test/<test>.yaml)",
+                                  "csv": "a mapping of pandas.read_csv keywords",
+                                  "json": "a mapping {matrix: KEY, columns: [NAME, ...]}"}[key])
     named = out.parent.name if (default_conf() / "test" / f"{out.parent.name}.yaml").is_file() else None
     protocol = protocol or mapping.get("protocol") or named
-    df = _read_source(src, dict(mapping.get("csv") or {}))
+    df = _read_source(src, dict(mapping.get("csv") or {}), mapping.get("json"))
     res = convert(df, mapping, where=f"{src} (mapping {map_where})")
     meta = {"imported": True, "synthetic": False, "source": src.name, "source_sha256": file_sha256(src),
             "mapping": _plain(mapping), "protocol": protocol,

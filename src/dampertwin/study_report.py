@@ -48,40 +48,72 @@ def _md_table(df: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
-def _flag_rows(t: pd.DataFrame, cols: list[str], limit: float, unit: str) -> tuple[pd.DataFrame, list[str]]:
+def _flag_rows(t: pd.DataFrame, cols: list[str], limit: float, unit: str) -> tuple[pd.DataFrame, list[dict]]:
+    """Mark table rows with a cell beyond ``limit``; one flag per row (case)
+    listing its cells beyond it."""
     t = t.copy()
     flags = []
     mark = []
     for _, r in t.iterrows():
         bad = [c for c in cols if c in r and abs(float(r[c])) > limit]
         mark.append("**FLAG**" if bad else "")
-        for c in bad:
-            flags.append(f"{r.get('Design case', r.iloc[1])}: {c} = {float(r[c]):+.2f} (|.| > {limit:g} {unit})")
+        if bad:
+            where = str(r.get("Design case", r.iloc[1]))
+            cur = next((r[c] for c in t.columns if str(c).startswith("Active valve current")), None)
+            where += "" if cur is None else f", {float(cur):g} A"
+            flags.append({"where": where, "flag": f"abs. diff > {limit:g} {unit}",
+                          "detail": ", ".join(f"{c} {float(r[c]):+.2f}" for c in bad)})
     t["flag"] = mark
     return t, flags
 
 
-def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[str]]:
+def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[dict]]:
     """One row per fitted parameter: value, 95 % interval, relative
-    half-width, determined (calibration.uncertainty, via fits.json)."""
+    half-width, determined (calibration.uncertainty, via fits.json); and
+    the fits' flags (one per fit and kind: failures, no improvement,
+    parameters not determined - with what is determined instead)."""
     rows, flags = [], []
     for name, f in fits.get("fits", {}).items():
         unc = (f.get("uncertainty") or {}).get("parameters", {})
         if f.get("failed_simulations"):
-            flags.append(f"{name}: {f['failed_simulations']} failed simulations during the GA")
+            flags.append({"where": name, "flag": "failed simulations",
+                          "detail": f"{f['failed_simulations']} during the GA"})
         if f.get("objective_best", 0) >= f.get("objective_start", math.inf):
-            flags.append(f"{name}: the fit did not lower its objective")
-        bad = [f"{k} ({u['why']})" for k, u in unc.items() if k in f.get("values", {}) and not u["determined"]]
+            flags.append({"where": name, "flag": "objective not lowered", "detail": ""})
+        bad = [k for k, u in unc.items() if k in f.get("values", {}) and not u["determined"]]
         if bad:
-            flags.append(f"{name}: {len(bad)} of {len(f.get('values', {}))} parameters not determined by the data: "
-                         + "; ".join(bad))
+            det = (f.get("determined") or {}).get("quantity")
+            flags.append({"where": name, "flag": f"{len(bad)} of {len(f.get('values', {}))} parameters not determined",
+                          "detail": ", ".join(k.split(".")[-1] for k in bad)
+                          + (f"; determined: {det.split(' (')[0].split(',')[0]} (below)" if det else "")})
         for key, value in f.get("values", {}).items():
             u = unc.get(key)
             rows.append({"fit": name, "parameter": key, "value": value,
                          "95 % interval": None if u is None else u["ci95"],
                          "rel. half-width [%]": None if u is None else 100 * u["rel_halfwidth"],
-                         "determined": "-" if u is None else ("yes" if u["determined"] else "**no**")})
+                         "determined": "-" if u is None else ("yes" if u["determined"] else f"**no** ({u['why']})")})
     return pd.DataFrame(rows), flags
+
+
+def determined_tables(fits: dict) -> list[str]:
+    """Markdown of what each fit's record determines (valve lift-force
+    curves, top-mount dynamic stiffness), with 95 % bands."""
+    md = []
+    for name, f in fits.get("fits", {}).items():
+        det = f.get("determined")
+        if not det or "error" in det:
+            continue
+        if "curve" in det:
+            rows = [{"lift [mm]": 1e3 * r["lift [m]"], "force [N]": r["force [N]"],
+                     "95 % band [N]": [r["ci95 low [N]"], r["ci95 high [N]"]],
+                     "rel. half-width [%]": r["rel. half-width [%]"]} for r in det["curve"]]
+        else:
+            rows = [{"frequency [Hz]": r["frequency [Hz]"], "|K*| [N/mm]": r["stiffness [N/m]"] / 1e3,
+                     "95 % band [N/mm]": [x / 1e3 for x in r["stiffness ci95 [N/m]"]],
+                     "loss angle [deg]": r["loss angle [deg]"], "95 % band [deg]": r["loss angle ci95 [deg]"]}
+                    for r in det["rows"]]
+        md += [f"### {name}: {det['quantity']}", "", _md_table(pd.DataFrame(rows)), ""]
+    return md
 
 
 def build_report(study: str | Path, *, measured_label: str = "", cases: list[str] | None = None) -> tuple[Path, Path]:
@@ -110,7 +142,7 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
            "correlations).", ""]
     md += ["## Flags", ""]
     all_flags = flags65 + flags66 + fit_flags
-    md += [f"- {f}" for f in all_flags] or ["- none"]
+    md += [_md_table(pd.DataFrame(all_flags, columns=["where", "flag", "detail"]))] if all_flags else ["none"]
     md += ["", f"Thresholds: |peak diff| > {peak_pct:g} %, |PSD diff| > {psd_db:g} dB, a parameter is not "
            f"determined when its interval half-width exceeds {REL_CI_MAX:.0%} of its value, it correlates with "
            f"another beyond |{CORR_MAX}|, or it loads a singular direction of the Jacobian.", ""]
@@ -126,6 +158,14 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
                          "failed": f["failed_simulations"]} for n, f in fits.get("fits", {}).items()])
     if len(obj):
         md += [_md_table(obj), ""]
+    det = determined_tables(fits)
+    if det:
+        md += ["## What the data determine", "",
+               "Where coefficients trade off (pairwise |corr| near 1, intervals wider than the values), the "
+               "record still fixes the curve they draw: each valve's spring force over the lift range the test "
+               "reached (eq. 4.19), the top mount's dynamic stiffness and loss angle at the sweep frequencies. "
+               "Bands: the fit's covariance propagated to the quantity (delta method; unresolved directions at "
+               "the Jacobian's resolution limit), 95 %, Student t.", ""] + det
     if len(fr):
         if fr["95 % interval"].isna().all():
             md += ["(no intervals recorded for these fits: rerun the fit stages to compute them)", ""]

@@ -22,8 +22,9 @@ from ..excitation import Excitation
 from ..io import runs
 from ..sensors import sensor_delay, sensor_lowpass
 from ..simulation import batch_status_text, simulate_batch
-from .ga import Evaluator, FitError, FitResult, GASettings, ParamSpec, run_ga
-from .polish import UNCERTAINTY_ATOL, UNCERTAINTY_RTOL, PolishSettings, Records, polish
+from .ga import FitError, FitResult, GASettings, ParamSpec
+from .optimisers import run
+from .polish import UNCERTAINTY_ATOL, UNCERTAINTY_RTOL, PolishSettings, Records
 
 SHIM_VALVES = ("piston_rebound", "base_compression")
 
@@ -184,18 +185,6 @@ class _Channel:
         return self.fn(ch, nuisance or {})
 
 
-def _fit(records: Records, specs, res_fn, polish_settings: PolishSettings | None, label: str, progress: bool,
-         nominal: dict | None = None):
-    """GA (``res_fn``), then the local polish from its best members and from
-    ``nominal`` (the drawings' values, also a start of the GA)."""
-    res = res_fn()
-    if polish_settings is not None:
-        res = polish(records, specs, res, polish_settings, label=f"{label} polish", progress=progress,
-                     nominal=nominal)
-    res.specs, res.records = specs, records
-    return res
-
-
 def _context(design: Design, measured: pd.DataFrame) -> str:
     """Hash of a fit's inputs (for checkpoint validity)."""
     import hashlib
@@ -242,10 +231,8 @@ def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, set
                   lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
     rec = _records(design, specs, cases, "valve", ch, settings.max_wall_s, bench=bench)
     x0 = {s.key: design[s.key] for s in specs}
-    return _fit(rec, specs, lambda: run_ga(specs, Evaluator(rec.scores, scheduler), settings, seed, x0=x0,
-                                           checkpoint=checkpoint, label=f"valve {valve}", progress=progress,
-                                           context=_context(design, measured)),
-                polish_settings, f"valve {valve}", progress, x0)
+    return run(rec, specs, settings, seed=seed, x0=x0, polish_settings=polish_settings, checkpoint=checkpoint,
+               scheduler=scheduler, label=f"valve {valve}", progress=progress, context=_context(design, measured))
 
 
 def _through_sensor(column: str, bandwidth: float | None, fs: float, key: str = "sensor.force_bandwidth",
@@ -294,10 +281,8 @@ def fit_compliance(design: Design, measured: pd.DataFrame, cal: dict, settings: 
     rec = _records(design, specs, cases, "damper", ch, settings.max_wall_s)
     nominal = _force_chain_nominal(force_bandwidth)
     x0 = {s.key: (design[s.key] if not s.key.startswith(NUISANCE) else nominal[s.key]) for s in specs}
-    return _fit(rec, specs, lambda: run_ga(specs, Evaluator(rec.scores, scheduler), settings, seed, x0=x0,
-                                           checkpoint=checkpoint, label="compliance", progress=progress,
-                                           context=_context(design, measured)),
-                polish_settings, "compliance", progress, x0)
+    return run(rec, specs, settings, seed=seed, x0=x0, polish_settings=polish_settings, checkpoint=checkpoint,
+               scheduler=scheduler, label="compliance", progress=progress, context=_context(design, measured))
 
 
 def fit_static_curve(measured: pd.DataFrame, run: str, order: int = 5, design: Design | None = None,
@@ -368,9 +353,7 @@ def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: G
     else:
         d, coef, kept = design, list(design["top_mount.F_LD"]), "nominal (least squares raised eq. 6.3)"
     rec = _records(d, specs, cases, "topmount", ch, settings.max_wall_s)
-    res = _fit(rec, specs, lambda: run_ga(specs, Evaluator(rec.scores, scheduler), settings, seed, x0=x0,
-                                          checkpoint=checkpoint, label="top mount", progress=progress,
-                                          context=_context(design, measured)),
-               polish_settings, "top mount", progress, x0)
+    res = run(rec, specs, settings, seed=seed, x0=x0, polish_settings=polish_settings, checkpoint=checkpoint,
+              scheduler=scheduler, label="top mount", progress=progress, context=_context(design, measured))
     res.start_objective = j_nominal  # "before" = the uncalibrated design: nominal curve and dynamics
     return res, coef, kept

@@ -27,14 +27,13 @@ Engineering, as :func:`dampertwin.calibration.ga.run_ga`:
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
 
+from ..checkpoint import as_store
 from .ga import INFEASIBLE, NEAR_SPREAD, FitError, GASettings, ParamSpec
 
 
@@ -89,7 +88,7 @@ class ConcurrentResult:
 
 
 def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASettings, seed: int, *,
-                   x0: dict[str, float] | None = None, checkpoint: str | Path | None = None,
+                   x0: dict[str, float] | None = None, checkpoint=None,
                    label: str = "concurrent GA", progress: bool = True, context: str = "") -> ConcurrentResult:
     """Algorithm 1. ``score`` maps combined parameter rows (columns: the
     groups' specs in order) to one objective per group plus the unweighted
@@ -144,11 +143,11 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
             pop[1:near] = np.clip(part + NEAR_SPREAD * rng.standard_normal((near - 1, sizes[gi])), 0, 1)
             pop[0] = part
     start_gen, rows = 0, []
-    ck = Path(checkpoint) if checkpoint else None
+    store = as_store(checkpoint)
     sig = json.dumps({"groups": [[g.name, [s.__dict__ for s in g.specs]] for g in groups], "ga": settings.__dict__,
                       "seed": seed, "x0": x0, "context": context}, sort_keys=True)
-    if ck and ck.is_file():
-        z = np.load(ck, allow_pickle=False)
+    z = store.load() if store else None
+    if z is not None:
         if str(z["sig"]) == sig:
             pops = [z[f"pop{gi}"] for gi in range(G)]
             start_gen = int(z["gen"])
@@ -198,8 +197,8 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
             ga.run()
             new.append(np.asarray(ga.population, float))
         pops = new
-        if ck:
-            _save(ck, pops, gen + 1, rows, cache, found_at, counters, sig, failures)
+        if store:
+            store.save(_state(pops, gen + 1, rows, cache, found_at, counters, sig, failures))
         bar.update(1)
     bar.close()
     S = objective(np.hstack(pops))
@@ -216,16 +215,14 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
                             dict(failures), [g.name for g in groups])
 
 
-def _save(path: Path, pops, gen, rows, cache, found_at, counters, sig, failures):
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.npz")
+def _state(pops, gen, rows, cache, found_at, counters, sig, failures) -> dict:
+    """The concurrent GAs' state for their checkpoint store."""
     keys = list(cache)
     K = np.array([np.frombuffer(k, dtype=np.uint8) for k in keys]) if keys else np.zeros((0, 0), np.uint8)
-    np.savez(tmp, **{f"pop{gi}": p for gi, p in enumerate(pops)}, gen=gen, history=json.dumps(rows),
-             cache_keys=K, cache_vals=np.array([cache[k] for k in keys]),
-             found_at=np.array([found_at[k] for k in keys], np.int64), failed=counters["failed"],
-             evals=counters["evals"], sig=sig, failures=json.dumps(failures, sort_keys=True))
-    os.replace(tmp, path)
+    return dict(**{f"pop{gi}": p for gi, p in enumerate(pops)}, gen=gen, history=json.dumps(rows),
+                cache_keys=K, cache_vals=np.array([cache[k] for k in keys]),
+                found_at=np.array([found_at[k] for k in keys], np.int64), failed=counters["failed"],
+                evals=counters["evals"], sig=sig, failures=json.dumps(failures, sort_keys=True))
 
 
 def progress_figure(history: pd.DataFrame, groups: Sequence[str], title: str = "Concurrent GAs (thesis fig. 7.7)"):

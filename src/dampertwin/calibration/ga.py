@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import pandas as pd
 
+from ..checkpoint import as_store
 from ..errors import UserError
 
 INFEASIBLE = 1e30  # objective of a failed simulation
@@ -31,18 +30,47 @@ TOP_KEPT = 10  # best distinct members returned (start points of a local polish)
 
 
 class FitError(UserError):
-    """A fit that cannot produce a result (every member infeasible)."""
+    """A fit that cannot run or produce a result: unusable inputs (the
+    message names the file / key / item) or every member infeasible. The
+    one fit error of the project (``dampertwin.fitting.FitError`` is it)."""
 NEAR_SPREAD = 0.1  # gene-space std of the initial members placed around the nominal design
 
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """A fitted quantity: design key, search bounds (SI) and gene scale."""
+    """A fitted quantity: design key, search bounds (SI), scale of its
+    normalised coordinate in [0, 1] (the GA's gene, the Gauss-Newton refit's
+    u) and, optionally, its start value. The one parameter spec of the
+    calibration core (the discrepancy refits build theirs with :meth:`auto`)."""
 
     key: str
     lo: float
     hi: float
     scale: str = "lin"  # "lin" | "log" (log needs lo > 0)
+    start: float | None = None  # start value [SI] (None: the design's)
+
+    @classmethod
+    def auto(cls, key: str, lo: float, hi: float, start: float | None = None) -> "ParamSpec":
+        """Logarithmic when the bounds are positive and span > 2 decades."""
+        return cls(key, lo, hi, "log" if lo > 0 and hi / lo > 100 else "lin", start)
+
+    @property
+    def log(self) -> bool:
+        return self.scale == "log"
+
+    def to_u(self, v: float) -> float:
+        """Scalar value -> coordinate in [0, 1] (clipped to the bounds)."""
+        v = min(max(v, self.lo), self.hi)
+        if self.log:
+            return math.log(v / self.lo) / math.log(self.hi / self.lo)
+        return (v - self.lo) / (self.hi - self.lo) if self.hi > self.lo else 0.0
+
+    def to_v(self, u: float) -> float:
+        """Scalar coordinate (clipped to [0, 1]) -> value."""
+        u = min(max(u, 0.0), 1.0)
+        if self.log:
+            return self.lo * (self.hi / self.lo) ** u
+        return self.lo + u * (self.hi - self.lo)
 
     def to_value(self, g):
         g = np.clip(g, 0.0, 1.0)
@@ -130,12 +158,14 @@ class Evaluator:
 
 
 def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, seed: int, *,
-           x0: dict[str, float] | None = None, checkpoint: str | Path | None = None, label: str = "fit",
+           x0: dict[str, float] | None = None, checkpoint=None, label: str = "fit",
            progress: bool = True, context: str = "") -> FitResult:
     """Minimise the objective over ``specs``. ``x0`` (the nominal design) is
     a member of the first population and gives ``start_objective``. A
     checkpoint is reused only if specs, settings, seed, x0 and ``context``
-    (a hash of the inputs: design, measured data) all match."""
+    (a hash of the inputs: design, measured data) all match. ``checkpoint``:
+    a store (:mod:`dampertwin.checkpoint`) or a path (an .npz store); the
+    GA saves its state there after every generation."""
     import pygad
     from ..progress import progress as tqdm
 
@@ -176,11 +206,11 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
         pop[1:near] = np.clip(g0 + NEAR_SPREAD * rng.standard_normal((near - 1, k)), 0, 1)
         pop[0] = g0
     start_gen, rows = 0, []
-    ck = Path(checkpoint) if checkpoint else None
+    store = as_store(checkpoint)
     sig = json.dumps({"specs": [s.__dict__ for s in specs], "ga": settings.__dict__, "seed": seed, "x0": x0,
                       "context": context}, sort_keys=True)
-    if ck and ck.is_file():
-        z = np.load(ck, allow_pickle=False)
+    z = store.load() if store else None
+    if z is not None:
         if str(z["sig"]) == sig:
             pop, start_gen = z["pop"], int(z["gen"])
             rows = json.loads(str(z["history"]))
@@ -204,8 +234,8 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
                       random_seed=int((seed * 1_000_003 + gen) % (2**31)), suppress_warnings=True)
         ga.run()
         pop = np.asarray(ga.population, float)
-        if ck:
-            _save(ck, pop, gen + 1, rows, cache, counters, sig, failures)
+        if store:
+            store.save(_state(pop, gen + 1, rows, cache, counters, sig, failures))
         bar.update(1)
     bar.close()
     J = objective(pop)
@@ -225,11 +255,9 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
                      dict(failures), top=top, objective_ga=cache[best_key])
 
 
-def _save(path: Path, pop, gen, rows, cache, counters, sig, failures=None):
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.npz")
+def _state(pop, gen, rows, cache, counters, sig, failures=None) -> dict:
+    """The GA's state for its checkpoint store."""
     keys = np.array([np.frombuffer(k, dtype=np.uint8) for k in cache]) if cache else np.zeros((0, 0), np.uint8)
-    np.savez(tmp, pop=pop, gen=gen, history=json.dumps(rows), cache_keys=keys,
-             cache_vals=np.array(list(cache.values())), failed=counters["failed"], evals=counters["evals"], sig=sig,
-             failures=json.dumps(failures or {}, sort_keys=True))
-    os.replace(tmp, path)
+    return dict(pop=pop, gen=gen, history=json.dumps(rows), cache_keys=keys,
+                cache_vals=np.array(list(cache.values())), failed=counters["failed"], evals=counters["evals"], sig=sig,
+                failures=json.dumps(failures or {}, sort_keys=True))

@@ -148,6 +148,7 @@ class Uncertainty:
     s2: float
     singular_values: np.ndarray
     jacobian_error: float = 0.0  # ||E||_2 / largest singular value (scaled), 0 if not estimated
+    covariance_bounded: np.ndarray | None = None  # as covariance, unresolved directions at the resolution limit
 
     def to_dict(self) -> dict:
         return {"n_samples": self.n, "n_eff": self.n_eff, "residual_variance": self.s2,
@@ -156,7 +157,9 @@ class Uncertainty:
                 "parameters": self.table.to_dict(orient="records"),
                 "correlation": {k: {kk: float(vv) for kk, vv in row.items()}
                                 for k, row in self.correlation.to_dict(orient="index").items()},
-                "undetermined": self.table.loc[~self.table["determined"], "parameter"].tolist()}
+                "undetermined": self.table.loc[~self.table["determined"], "parameter"].tolist(),
+                **({} if self.covariance_bounded is None else
+                   {"covariance_bounded": np.asarray(self.covariance_bounded).tolist()})}
 
     def to_markdown(self, title: str) -> str:
         from ..kpi import to_markdown
@@ -240,6 +243,10 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
     keep = rel_sv > max(sv_min, floor)
     inv = (Vt[keep].T / sv[keep] ** 2) @ Vt[keep]          # (Js^T Js)^+
     cov = s2 * n / n_eff * inv / np.outer(scale, scale)
+    # the same with every unresolved singular value raised to the resolution limit: a bounded covariance
+    # for propagating to quantities the data do determine (calibration.identifiability)
+    sv_lim = np.maximum(sv, max(sv_min, floor) * sv[0]) if sv[0] > 0 else np.ones_like(sv)
+    cov_bounded = s2 * n / n_eff * ((Vt.T / sv_lim ** 2) @ Vt) / np.outer(scale, scale)
     null_dirs = Vt[~keep]
     var = np.diag(cov).copy()
     if null_dirs.size:  # the pseudo-inverse drops a singular direction: its parameters are unbounded
@@ -284,7 +291,7 @@ def analyse(J: np.ndarray, r: np.ndarray, names: Sequence[str], x: np.ndarray,
                      "max |corr|": float(oc[k]) if p > 1 else 0.0, "with": names[k] if p > 1 else "",
                      "determined": not why, "why": "; ".join(why)})
     return Uncertainty(pd.DataFrame(rows), pd.DataFrame(corr, index=list(names), columns=list(names)), cov, n,
-                       n_eff, s2, rel_sv, floor)
+                       n_eff, s2, rel_sv, floor, cov_bounded)
 
 
 def other_optima(u: dict, ends: list[tuple[dict, float, float]], level: float = 0.95) -> dict:
@@ -351,3 +358,19 @@ def summary(u: dict) -> dict:
             "undetermined": list(u["undetermined"]), "correlation": u["correlation"],
             "other_optima": len(u.get("other_optima", []))}
 
+
+
+def gauss_newton_ci(J: np.ndarray, residual: np.ndarray, names: list[str], values: np.ndarray,
+                    jac_error: np.ndarray | None = None) -> dict:
+    """Intervals of a fit from its residual Jacobian ``J`` (d residual / d
+    parameter, physical units) at the optimum ``values``: :func:`analyse` in
+    the report form of :func:`summary`, plus each parameter's standard
+    deviation [its unit]. ``jac_error``: an estimate of J's error
+    (directions below it are not resolved)."""
+    u = analyse(J, residual, list(names), np.asarray(values, float), jac_error=jac_error)
+    out = summary(u.to_dict())
+    for row in u.table.to_dict(orient="records"):
+        out["parameters"][row["parameter"]]["std"] = row["std (fitted coord.)"]  # coordinates = physical here
+        out["parameters"][row["parameter"]]["sandwich / AR(1)"] = row["sandwich / AR(1)"]
+    out["covariance_bounded"] = np.asarray(u.covariance_bounded).tolist()
+    return out

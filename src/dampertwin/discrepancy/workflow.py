@@ -12,37 +12,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..calibration.ga import ParamSpec
 from ..design import Design, DesignError
 from ..simulation import simulate_batch
 from . import features as F
 
 
 # ------------------------------------------------------------------ parameters
-@dataclass
-class FitParam:
+def FitParam(key: str, lo: float, hi: float, start: float) -> ParamSpec:  # noqa: N802  (the refits' name)
     """A fitted parameter in normalised coordinates u in [0, 1] over its
-    bounds (logarithmic when the bounds are positive and span > 2 decades)."""
-
-    key: str
-    lo: float
-    hi: float
-    start: float
-
-    @property
-    def log(self) -> bool:
-        return self.lo > 0 and self.hi / self.lo > 100
-
-    def to_u(self, v: float) -> float:
-        v = min(max(v, self.lo), self.hi)
-        if self.log:
-            return math.log(v / self.lo) / math.log(self.hi / self.lo)
-        return (v - self.lo) / (self.hi - self.lo) if self.hi > self.lo else 0.0
-
-    def to_v(self, u: float) -> float:
-        u = min(max(u, 0.0), 1.0)
-        if self.log:
-            return self.lo * (self.hi / self.lo) ** u
-        return self.lo + u * (self.hi - self.lo)
+    bounds (logarithmic when the bounds are positive and span > 2 decades):
+    the calibration core's :class:`~dampertwin.calibration.ga.ParamSpec`."""
+    return ParamSpec.auto(key, lo, hi, start)
 
 
 @dataclass

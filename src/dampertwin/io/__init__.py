@@ -134,25 +134,33 @@ def max_file_bytes() -> int:
     return int(mb * 1024 * 1024)
 
 
-def read_table(path: str | os.PathLike, csv_kw: dict | None = None) -> tuple[pd.DataFrame, dict]:
-    """The raw table of a .parquet or .csv file (and its metadata), before
-    any schema check: a missing, oversized, unreadable or empty (header
-    only) file is a DataError naming it. Used by :func:`read_frame` and the
-    importer (a source in the user's own columns)."""
+def check_file(path: str | os.PathLike, suffixes: tuple[str, ...] = (".parquet", ".csv")) -> Path:
+    """A measurement file that exists, has one of ``suffixes``, is not empty
+    and is below the size limit; a DataError naming it otherwise."""
     path = Path(path)
     where = str(path)
     if path.is_dir():
-        raise DataError([f"{where}: is a folder; expected a .parquet or .csv file"])
+        raise DataError([f"{where}: is a folder; expected a {' or '.join(suffixes)} file"])
     if not path.is_file():
         raise DataError([f"{where}: file not found"])
-    if path.suffix not in (".parquet", ".csv"):
-        raise DataError([f"{where}: unsupported file type {path.suffix!r}; expected .parquet or .csv"])
+    if path.suffix not in suffixes:
+        raise DataError([f"{where}: unsupported file type {path.suffix!r}; expected {' or '.join(suffixes)}"])
     size, limit = path.stat().st_size, max_file_bytes()
     if size > limit:
         raise DataError([f"{where}: file is {size / 2**20:.1f} MB, larger than the {limit / 2**20:g} MB limit of a "
                          f"measurement file (not read; split the record, or raise DAMPERTWIN_MAX_FILE_MB)"])
     if size == 0:
         raise DataError([f"{where}: empty file (0 bytes); expected a record"])
+    return path
+
+
+def read_table(path: str | os.PathLike, csv_kw: dict | None = None) -> tuple[pd.DataFrame, dict]:
+    """The raw table of a .parquet or .csv file (and its metadata), before
+    any schema check: a missing, oversized, unreadable or empty (header
+    only) file is a DataError naming it. Used by :func:`read_frame` and the
+    importer (a source in the user's own columns)."""
+    path = check_file(path)
+    where = str(path)
     try:
         if path.suffix == ".parquet":
             df = pq.read_table(path).to_pandas()

@@ -1,0 +1,101 @@
+"""``dampertwin fit``: the command line's glue to the fit recipes of
+:mod:`dampertwin.fitting` (search spaces from ``--bounds`` / ``--param``,
+profile budgets, the friction options); the CLI layer, above the
+calibration core."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .design import yaml_load
+from .fitting import FitError, fit_compliance, fit_friction, fit_topmount, fit_valve
+
+
+def parse_param_args(items: list[str]) -> list[dict]:
+    """``name=lo:hi[:log]`` strings -> search-space items (absolute bounds)."""
+    out = []
+    for s in items:
+        try:
+            name, rng = s.split("=", 1)
+            parts = rng.split(":")
+            lo, hi = float(parts[0]), float(parts[1])
+            scale = parts[2] if len(parts) > 2 else "lin"
+        except (ValueError, IndexError):
+            raise FitError(f"--param {s!r}: expected name=lo:hi or name=lo:hi:log") from None
+        key = "key" if "." in name else "name"
+        out.append({key: name.strip(), "bounds": [lo, hi], "scale": scale})
+    return out
+
+
+def load_search_config(path: str | os.PathLike | None) -> dict:
+    if path is None:
+        return {}
+    p = Path(path)
+    if not p.is_file():
+        raise FitError(f"{p}: bounds file not found")
+    doc = yaml_load(p.read_text())
+    if not isinstance(doc, dict):
+        raise FitError(f"{p}: expected a mapping with a 'parameters:' list")
+    return doc
+
+
+def _merge_items(cfg_items: list | None, cli_items: list[dict]) -> list:
+    """Command-line items replace config items of the same parameter."""
+    def ident(it):
+        return it.get("key", it.get("name")) if isinstance(it, dict) else None
+
+    names = {ident(i) for i in cli_items}
+    return [i for i in (cfg_items or []) if ident(i) not in names] + cli_items
+
+
+# ---------------------------------------------------------------- statistics
+
+def _profile(name: str) -> dict:
+    """GA and polish budgets of a study profile (conf/profile/<name>.yaml)."""
+    from .config import repo_root
+
+    try:
+        p = repo_root() / "conf" / "profile" / f"{name}.yaml"
+    except FileNotFoundError:
+        raise FitError(f"--profile {name}: no conf/profile/ here (run inside the repository)") from None
+    if not p.is_file():
+        raise FitError(f"--profile {name}: {p} not found")
+    return yaml_load(p.read_text())
+
+
+def run_fit_cli(args) -> tuple[Path, list[str]]:
+    """``dampertwin fit`` entry: returns the written fit.json path and the
+    fit's flags (parameters on a bound, unsupported effects)."""
+    cfg = load_search_config(args.bounds)
+    if args.bounds:
+        cfg["_where"] = str(args.bounds)
+    if getattr(args, "profile", None):
+        if args.submodel == "friction":
+            raise FitError("--profile sets GA and polish budgets: valve, compliance and topmount fits only")
+        prof = _profile(args.profile)
+        section = {"valve": "valves"}.get(args.submodel, args.submodel)
+        cfg.setdefault("ga", prof["ga"][section])
+        cfg.setdefault("polish", prof.get("polish"))
+    items = _merge_items(cfg.get("parameters"), parse_param_args(args.param)) or None
+    kw = dict(design=args.design, bounds=items, predict=args.predict, out=args.out, seed=args.seed)
+    ga = dict(config=cfg, population=args.population, generations=args.generations)
+    if args.submodel != "friction" and (args.effect or args.holdout_cycles is not None):
+        raise FitError("--effect and --holdout-cycles apply to friction fits only")
+    if args.submodel == "friction":
+        fixed = {k: float(v) for k, v in (cfg.get("fixed") or {}).items()}
+        res = fit_friction(args.data, fixed=fixed, effects=tuple(dict.fromkeys(args.effect)),
+                           holdout_cycles=args.holdout_cycles, **kw)
+    elif args.submodel == "valve":
+        valve = args.valve or cfg.get("valve")
+        if not valve:
+            raise FitError("a valve fit needs --valve (or 'valve:' in the bounds file)")
+        res = fit_valve(args.data, valve, **kw, **ga)
+    elif args.submodel == "compliance":
+        res = fit_compliance(args.data, current=args.current, **kw, **ga)
+    else:
+        res = fit_topmount(args.data, **kw, **ga)
+    return Path(args.out) / "fit.json", list(res.get("flags", []))
+
+
+__all__ = ["parse_param_args", "load_search_config", "run_fit_cli"]

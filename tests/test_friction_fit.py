@@ -1,0 +1,122 @@
+"""The friction fit with the library's effects: the friction-only model's
+free play and asymmetry (limits, passivity), parameter recovery on a
+SYNTHETIC record of known parameters, bound hits reported and data-derived
+bounds widened, and the real BRFD record (CC BY-SA 4.0, the worked example's
+copy) fitted to force NRMSE <= 0.08 on fitted and held-out cycles."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dampertwin.calibration import friction_fit as ff
+from dampertwin.calibration.ga import ParamSpec
+from dampertwin.cli import main
+from dampertwin.fitting import fit_friction
+from dampertwin.io import write_frame
+from dampertwin.model.friction_only import simulate_friction
+
+LAW = dict(F_c=20.0, F_s=35.0, k_b=4e5, s2=150.0, c_comp=500.0, vd=0.001, a_s=0.01, alpha_s=2.0)
+FIXED = dict(c_comp=500.0, vd=0.001, a_s=0.01, alpha_s=2.0, v_reg=1e-3)
+EFFECTS = dict(a=-0.2, delta=5e-4)
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "friction-brfd"
+BRFD = EXAMPLE / "brfd_0.25Hz_36lb_1in.csv.gz"  # real record, CC BY-SA 4.0 (examples/friction-brfd/README.md)
+MAPPING = EXAMPLE / "mapping.yaml"
+
+
+def _motion(cycles=6, f=0.5, fs=1000.0, amp=0.005):
+    t = np.arange(0, cycles / f, 1 / fs)
+    x = amp * np.sin(2 * np.pi * f * t) * np.minimum(t * f, 1.0)
+    return t, x, np.gradient(x, t)
+
+
+def synthetic(path, noise=0.5, seed=3, **effects):
+    """A friction-device record from known parameters (SYNTHETIC)."""
+    t, x, v = _motion()
+    F = simulate_friction(t, v, **LAW, **effects) + np.random.default_rng(seed).normal(0, noise, len(t))
+    return write_frame(path, pd.DataFrame({"time [s]": t, "displacement [m]": x, "force [N]": F}),
+                       {"synthetic": True, "truth": {**LAW, **effects}, "noise [N]": noise})
+
+
+def test_free_play_carries_no_force_and_the_law_stays_passive():
+    t, x, v = _motion(cycles=3)
+    F0 = simulate_friction(t, v, **LAW)
+    F = simulate_friction(t, v, **LAW, **EFFECTS)
+    # the plain law is the limit of vanishing effects
+    assert np.max(np.abs(simulate_friction(t, v, **LAW, delta=1e-15) - F0)) < 1e-6
+    assert np.max(np.abs(simulate_friction(t, v, **LAW, a=1e-12) - F0)) < 1e-6
+    # after a reversal, once the bristles have unloaded (a travel of ~F_s / k_b), the elastic force is
+    # zero over the play (a travel of 2 delta): the force is the damping terms only
+    i = int(np.argmax(x[len(x) // 2:])) + len(x) // 2  # a displacement maximum
+    back = x[i] - x[i:]
+    inside = slice(i + int(np.argmax(back > 2 * LAW["F_s"] / LAW["k_b"])),
+                   i + int(np.argmax(back > 1.9 * EFFECTS["delta"])))
+    assert inside.stop - inside.start > 20
+    damping = 500.0 * np.exp(-(v[inside] / 1e-3) ** 2) * v[inside] + LAW["s2"] * v[inside]
+    assert np.max(np.abs(F[inside] - damping)) < 1e-6 * LAW["F_c"] + 1e-9
+    assert np.max(np.abs(F0[inside])) > 10.0  # the plain law carries its friction there
+    # asymmetry: sliding levels (1 + a) and (1 - a) of F_c
+    assert np.max(F[len(F) // 2:]) < np.max(-F[len(F) // 2:])
+    # passivity: over whole cycles the device absorbs work
+    per = int(round(1000.0 / 0.5))
+    for k in range(1, 3):
+        s = slice(k * per, (k + 1) * per)
+        assert np.sum(F[s] * v[s]) * 1e-3 > 0
+
+
+def test_fit_recovers_known_parameters_and_effects(tmp_path):
+    rec = synthetic(tmp_path / "rec.parquet", **EFFECTS)
+    r = fit_friction(rec, fixed=FIXED, effects=("asymmetric", "free_play"), out=tmp_path / "out", starts=4)
+    truth = {**LAW, **EFFECTS}
+    for k in ("F_c", "F_s", "k_b", "s2", "a", "delta"):
+        assert r["parameters"][k] == pytest.approx(truth[k], rel=0.05), k
+    assert r["cycles"]["held_out"] and r["nrmse"] < 0.02 and r["nrmse_held_out"] < 0.02
+    assert r["bound_hits"] == [] and r["flags"] == []
+    assert r["effects"]["without asymmetric"]["supported"] and r["effects"]["without free_play"]["supported"]
+    assert json.loads((tmp_path / "out" / "fit.json").read_text())["parameters"] == pytest.approx(r["parameters"])
+
+
+def test_effects_absent_from_the_data_are_not_supported(tmp_path):
+    rec = synthetic(tmp_path / "rec.parquet")  # plain law: no play
+    r = fit_friction(rec, fixed=FIXED, effects=("free_play",), starts=3)
+    assert not r["effects"]["without free_play"]["supported"]
+    assert any("free_play not supported" in f for f in r["flags"])
+
+
+def test_a_bound_the_optimum_lies_beyond_is_reported(tmp_path, capsys):
+    rec = synthetic(tmp_path / "rec.parquet")
+    out = tmp_path / "o"
+    assert main(["fit", "friction", "--data", str(rec), "--out", str(out), "--param", "F_c=0:100",
+                 "--param", "F_s=0:100", "--param", "s2=0:1000", "--param", "k_b=1e4:1e5:log"]) == 0
+    doc = json.loads((out / "fit.json").read_text())
+    hit = [h for h in doc["bound_hits"] if h["parameter"] == "k_b"]
+    assert hit and hit[0]["bound"] == "upper" and hit[0]["kind"] == "user"
+    assert "k_b" in capsys.readouterr().err
+
+
+def test_a_data_derived_bound_is_widened_until_it_holds_the_optimum():
+    t, x, v = _motion(cycles=3)
+    F = simulate_friction(t, v, **LAW)
+    specs = [ParamSpec("F_c", 0, 100), ParamSpec("F_s", 0, 100), ParamSpec("k_b", 1e3, 4e4, "log")]
+    base = {**LAW, "a": 0.0, "delta": 0.0, "v_reg": 1e-3}
+    fit = ff.fit_model(t, v, F, np.ones(len(t), bool), base, specs, ["data"] * 3, starts=3)
+    assert fit["widening_rounds"] >= 1 and fit["bound_hits"] == []
+    assert fit["values"]["k_b"] == pytest.approx(LAW["k_b"], rel=1e-3)
+
+
+def test_real_brfd_record_fitted_and_held_out_within_8_percent(tmp_path):
+    """The real friction record (kN forces, asymmetric, free play), imported
+    with the worked example's mapping, fitted on its first cycles with both
+    effects: force NRMSE <= 0.08 on fitted and held-out cycles, no
+    parameter on a bound, and both effects supported by the held-out cycles
+    (the plain law misses 0.08 there)."""
+    rec = tmp_path / "brfd.parquet"
+    assert main(["import", str(BRFD), "--map", str(MAPPING), "--out", str(rec)]) == 0
+    r = fit_friction(rec, effects=("asymmetric", "free_play"), starts=4, out=tmp_path / "fit")
+    assert r["cycles"]["held_out"], r["cycles"]
+    assert r["nrmse"] <= 0.08 and r["nrmse_held_out"] <= 0.08, (r["nrmse"], r["nrmse_held_out"])
+    assert r["bound_hits"] == []
+    assert r["effects"]["without asymmetric"]["supported"] and r["effects"]["without free_play"]["supported"]
+    assert r["effects"]["without any effect"]["nrmse_held_out_without"] > 0.08
