@@ -326,7 +326,8 @@ def test_fit_valve_gives_the_study_stage_result(tmp_path):
                  Excitation.from_samples(t, q, kind="flow"), "valve", bench_valve="piston_intake", rate=1000.0)
     f = r.to_frame()
     rec = write_frame(tmp_path / "pi.parquet", pd.DataFrame(
-        {"time [s]": t, "flow [m^3/s]": q, "dp [Pa]": (f["p upstream [Pa]"] - f["p downstream [Pa]"]).to_numpy()[:len(t)]}),
+        {"time [s]": t, "flow [m^3/s]": q, "dp [Pa]": (f["p upstream [Pa]"] - f["p downstream [Pa]"]).to_numpy()[:len(t)],
+         "run": "piston_intake"}),
         {"synthetic": True})
     prof = yaml_load_file(ROOT / "conf" / "profile" / "ci.yaml")
     fb = load_protocol(ROOT / "conf" / "test" / "flowbench.yaml")

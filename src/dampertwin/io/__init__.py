@@ -134,6 +134,16 @@ def max_file_bytes() -> int:
     return int(mb * 1024 * 1024)
 
 
+CSV_COMPRESSIONS = (".gz", ".bz2", ".xz", ".zip")  # pandas reads these CSVs directly
+
+
+def file_kind(path: Path) -> str:
+    """The file's table type: '.parquet', '.csv' (compressed CSVs included) or its suffix."""
+    if path.suffix in CSV_COMPRESSIONS and Path(path.stem).suffix == ".csv":
+        return ".csv"
+    return path.suffix
+
+
 def check_file(path: str | os.PathLike, suffixes: tuple[str, ...] = (".parquet", ".csv")) -> Path:
     """A measurement file that exists, has one of ``suffixes``, is not empty
     and is below the size limit; a DataError naming it otherwise."""
@@ -143,8 +153,10 @@ def check_file(path: str | os.PathLike, suffixes: tuple[str, ...] = (".parquet",
         raise DataError([f"{where}: is a folder; expected a {' or '.join(suffixes)} file"])
     if not path.is_file():
         raise DataError([f"{where}: file not found"])
-    if path.suffix not in suffixes:
-        raise DataError([f"{where}: unsupported file type {path.suffix!r}; expected {' or '.join(suffixes)}"])
+    if file_kind(path) not in suffixes:
+        raise DataError([f"{where}: unsupported file type {path.suffix!r}; expected {' or '.join(suffixes)}"
+                         + (" (a .csv may be compressed: .csv.gz, .csv.bz2, .csv.xz, .csv.zip)"
+                            if ".csv" in suffixes else "")])
     size, limit = path.stat().st_size, max_file_bytes()
     if size > limit:
         raise DataError([f"{where}: file is {size / 2**20:.1f} MB, larger than the {limit / 2**20:g} MB limit of a "
