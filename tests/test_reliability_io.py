@@ -222,6 +222,7 @@ def test_second_run_on_the_same_output_is_refused_and_the_lock_removed(tmp_path)
     out = tmp_path / "o"
     sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
     try:
+        lock_path(out).parent.mkdir(parents=True, exist_ok=True)
         lock_path(out).write_text(f"{sleeper.pid}\n")  # a live run holds OUT
         with pytest.raises(OutputError, match=f"another dampertwin run \\(process {sleeper.pid}\\)"):
             with out_lock(out):
@@ -230,8 +231,9 @@ def test_second_run_on_the_same_output_is_refused_and_the_lock_removed(tmp_path)
         sleeper.kill()
         sleeper.wait()
     with out_lock(out) as lock:  # its process gone: the stale lock is taken over ...
-        assert lock.read_text().strip() == str(os.getpid())
+        assert lock.read_text().split() == [str(os.getpid()), os.path.realpath(out)]
     assert not lock.exists()  # ... and removed at the end
+    assert list(tmp_path.iterdir()) == []  # nothing created beside OUT
     with pytest.raises(ZeroDivisionError):
         with out_lock(out):
             1 / 0

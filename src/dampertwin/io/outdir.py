@@ -2,17 +2,20 @@
 under a writable folder) and locked while a command writes them, so a second
 run on the same OUT is refused instead of mixing its files with the first's.
 
-The lock is a sibling file ``.NAME.lock`` holding the owner's process id; it
-is removed when the command ends (SIGTERM included); one left by a killed
-process (its id no longer running) is taken over.
+The lock is a file named by a hash of OUT's real path in the temporary
+folder's ``dampertwin-locks/`` holding the owner's process id and OUT; it is
+removed when the command ends (SIGTERM included); one left by a killed process
+(its id no longer running) is taken over.
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import signal
 import sys
+import tempfile
 import threading
 from pathlib import Path
 
@@ -62,8 +65,11 @@ def _alive(pid: int) -> bool:
 
 
 def lock_path(out: str | os.PathLike) -> Path:
-    o = Path(out).absolute()
-    return o.parent / f".{o.name}.lock"
+    """The lock file of output ``out``: one per real path, in the temporary folder's
+    ``dampertwin-locks/`` (nothing is created beside OUT, not even its parent folder)."""
+    real = os.path.realpath(os.fspath(out))
+    name = hashlib.sha256(real.encode()).hexdigest()[:20]
+    return Path(tempfile.gettempdir()) / "dampertwin-locks" / f"{name}.lock"
 
 
 @contextlib.contextmanager
@@ -71,14 +77,17 @@ def out_lock(out: str | os.PathLike, option: str = "--out"):
     """Hold the lock of output ``out`` while the block runs (see the module
     docstring). A live owner: OutputError naming the lock and its process."""
     lock = lock_path(out)
-    lock.parent.mkdir(parents=True, exist_ok=True)
+    if not lock.parent.is_dir():
+        lock.parent.mkdir(parents=True, exist_ok=True)
+        with contextlib.suppress(OSError):
+            lock.parent.chmod(0o1777)  # shared by every user, like /tmp
     for _ in range(2):
         try:
             fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
             break
         except FileExistsError:
             try:
-                pid = int(lock.read_text().strip() or "0")
+                pid = int((lock.read_text().split() or ["0"])[0])
             except (OSError, ValueError):
                 pid = 0
             if pid and pid != os.getpid() and _alive(pid):
@@ -90,7 +99,7 @@ def out_lock(out: str | os.PathLike, option: str = "--out"):
     else:
         raise OutputError(f"{option} {out}: another run took the lock file {lock} meanwhile")
     with os.fdopen(fd, "w") as f:
-        f.write(f"{os.getpid()}\n")
+        f.write(f"{os.getpid()} {os.path.realpath(os.fspath(out))}\n")
     old = None
     if threading.current_thread() is threading.main_thread():  # SIGTERM unwinds (lock and temp files removed)
         old = signal.getsignal(signal.SIGTERM)
@@ -102,7 +111,7 @@ def out_lock(out: str | os.PathLike, option: str = "--out"):
         yield lock
     finally:
         try:
-            if lock.read_text().strip() == str(os.getpid()):
+            if (lock.read_text().split() or [""])[0] == str(os.getpid()):
                 lock.unlink()
         except OSError:
             pass
