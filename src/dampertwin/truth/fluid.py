@@ -24,14 +24,17 @@ P_FLOOR_EPS = 2000.0  # [Pa] rounding of the pressure floor at the vapour pressu
 
 @njit(**JIT)
 def ramp(x, eps):
-    """Smooth positive part: (x + sqrt(x^2 + eps^2)) / 2, -> max(x, 0) for |x| >> eps."""
-    return 0.5 * (x + math.sqrt(x * x + eps * eps))
+    """Smooth positive part, the softplus eps ln(1 + e^(x/eps)) in an
+    overflow-free form; -> max(x, 0) for |x| >> eps."""
+    r = x / eps
+    return eps * (max(r, 0.0) + math.log1p(math.exp(-abs(r))))
 
 
 @njit(**JIT)
 def ramp_slope(x, eps):
-    """d ramp / dx."""
-    return 0.5 * (1.0 + x / math.sqrt(x * x + eps * eps))
+    """d ramp / dx: the logistic function of x / eps."""
+    e = math.exp(-abs(x / eps))
+    return 1.0 / (1.0 + e) if x >= 0.0 else e / (1.0 + e)
 
 
 @njit(**JIT)

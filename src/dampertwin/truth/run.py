@@ -16,7 +16,7 @@ from . import gas as gs
 from . import mount as mt
 from . import solenoid as sv
 from .damper import RHS
-from .fluid import density
+from .fluid import density, ramp
 from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, EX_T0, N_OUT, OUTPUTS, PO, SO, TO,
                      scales, state_names)
 from .params import INTAKES, SHIMS, index
@@ -63,8 +63,7 @@ def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0, reserve_oil):
     vols = (A_r * (p[co + ch.L_R0] - s0), A_b * (p[co + ch.L_C0] + s0), p[co + ch.V_B])
     kap = (p[co + ch.KAPPA_PT], p[co + ch.KAPPA_PT], p[co + ch.KAPPA_TT])
     for k, (V0, kk) in enumerate(zip(vols, kap)):
-        e = p[go + gs.ALPHA_N] + 0.5 * ((p[go + gs.ALPHA_TOT] - p[go + gs.S_H] * P0 / P_ref)
-                                         + np.hypot(p[go + gs.ALPHA_TOT] - p[go + gs.S_H] * P0 / P_ref, gs.ALPHA_EPS))
+        e = p[go + gs.ALPHA_N] + ramp(p[go + gs.ALPHA_TOT] - p[go + gs.S_H] * P0 / P_ref, gs.ALPHA_EPS)
         V = V0 * (1 + kk * (P0 - p[oo + 9]))
         y[SO["chambers"] + k] = P0
         y[SO["chambers"] + 3 + k] = e * V / (1 + e * P_ref / P0)
