@@ -95,11 +95,13 @@ def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0, reserve_oil):
 def simulate(p: np.ndarray, excitation: Excitation, configuration: str, *, current: float = 0.0,
              bench_valve: str | None = None, bench: dict | None = None, rate: float = 10_000.0,
              oil_T: float | None = None, rest: dict | None = None, rtol: float = RTOL, atol: float = ATOL,
-             settle: float = SETTLE_S, max_wall_s: float | None = 900.0) -> TruthResult:
+             settle: float = SETTLE_S, max_wall_s: float | None = 900.0,
+             start_current: float | None = None) -> TruthResult:
     """One test on the truth ``p`` (params.derive): ``configuration`` valve /
     damper / module / topmount; ``rest`` gives P0 [Pa], V_gas0 [m^3] (the
     gas fill) and T [K]; ``oil_T`` the oil temperature at the start
-    (default rest["T"])."""
+    (default rest["T"]); ``start_current`` the coil current at the start
+    (default: the command, the driver's steady state)."""
     p = np.array(p, float)
     run = PO["run"]
     p[run + CURRENT] = current
@@ -119,6 +121,9 @@ def simulate(p: np.ndarray, excitation: Excitation, configuration: str, *, curre
     else:
         p[PO["chambers"] + ch.T_AMB] = oil_T
         y0 = _rest_damper(p, configuration, float(excitation.value[0]), oil_T, rest["P0"], rest["V_gas0"], None)
+        if start_current is not None:
+            y0[SO["active_valve"] + sv.I] = start_current
+            y0[SO["active_valve"] + sv.E] = 0.0
     rhs = RHS[configuration]
     sc = scales(configuration)
     ex = excitation.array()
