@@ -128,7 +128,7 @@ def test_current_driver_reaches_the_command_with_finite_bandwidth():
     assert 0.3e-4 < t63 < 3e-3
 
 
-@njit(rhs_signature(), cache=True)
+@njit(rhs_signature(), cache=False)  # calls gas.reserve: no stale cache across edits
 def _gas_bench(t, y, p, ex, aux, dy, out):
     """The reserve gas alone, its volume prescribed: V = V0 (1 - 0.3 min(t / t_c, 1))."""
     V0, t_c = p[len(gs.PARAMS)], p[len(gs.PARAMS) + 1]

@@ -24,3 +24,33 @@ the imports; another compares function bodies).
 """
 
 TRUTH_VERSION = "dampertwin-truth 1"
+
+
+def _refresh_compiled_cache() -> None:
+    """Numba's on-disk cache of a compiled function is keyed by its own
+    file's time stamp, not by the files of the functions it calls (the
+    assembled right-hand sides call every submodel): after an edit of a
+    submodel the assembly would run stale machine code. A hash of all the
+    truth's sources, kept beside the cache, drops the cache when any
+    source changed."""
+    import hashlib
+    from pathlib import Path
+
+    here = Path(__file__).parent
+    h = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(here.glob("*.py")))).hexdigest()
+    cache = here / "__pycache__"
+    stamp = cache / "truth-sources.sha256"
+    try:
+        if stamp.is_file() and stamp.read_text() == h:
+            return
+        for f in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
+            f.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        tmp = cache / f"truth-sources.{id(h)}.tmp"
+        tmp.write_text(h)
+        tmp.replace(stamp)
+    except OSError:  # a read-only install keeps its cache
+        pass
+
+
+_refresh_compiled_cache()

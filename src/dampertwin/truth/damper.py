@@ -233,4 +233,28 @@ def rhs_valve(t, y, p, ex, aux, dy, out):
     out[O_DISS] = L
 
 
-RHS = {"valve": rhs_valve, "damper": rhs_damper, "module": rhs_module, "topmount": rhs_topmount}
+@njit(SIG, **JIT)
+def rhs_active_valve(t, y, p, ex, aux, dy, out):
+    """The active valve alone on a pressure bench: prescribed pressure drop
+    (ex) over it, outlet at the bench's back pressure, degassed oil."""
+    for k in range(out.shape[0]):
+        out[k] = 0.0
+    dp, _ = prescribed(t, p, ex)
+    P_out = p[RUN + BENCH_P]
+    P_in = P_out + dp
+    T = p[CH + ch.T_AMB]
+    rho = density(P_in, T, p, OIL)
+    mu = viscosity(T, p, OIL) * p[OIL + RHO0]
+    Q_a, Q_f, Q_pl, P_mag, L_av = sv.active_valve(y, 0, p, AV, p[RUN + CURRENT], P_in, P_out, rho, mu, dy)
+    P_k = y[sv.PK]
+    rho_k = density(P_k, T, p, OIL)
+    dy[sv.PK] = ch.pressure_rate(P_k, T, 0.0, p[AV + sv.V_K] - p[AV + sv.A_K] * y[sv.XM], -p[AV + sv.A_K] * y[sv.VM],
+                                 0.0, 0.0, 0.0, _mean(rho, rho_k) * Q_f - _mean(rho_k, rho) * Q_pl, p, OIL)
+    out[O_DP] = dp
+    out[O_Q_IN] = Q_a + Q_pl
+    out[O_P_K] = P_k
+    out[O_X_M] = y[sv.XM]
+
+
+RHS = {"valve": rhs_valve, "damper": rhs_damper, "module": rhs_module, "topmount": rhs_topmount,
+       "active_valve": rhs_active_valve}

@@ -37,8 +37,9 @@ DAMPER_BLOCKS = (("chambers", chambers.STATES), ("gas", gas.STATES), ("piston_re
 MODULE_BLOCKS = DAMPER_BLOCKS + (("rod", ROD_STATES), ("mount", mount.STATES))
 TOPMOUNT_BLOCKS = (("mount", mount.STATES), ("fixture", fixture.STATES))
 VALVE_BLOCKS = (("bench", BENCH_STATES),)
+ACTIVE_BLOCKS = (("active_valve", solenoid.STATES),)
 CONFIG_BLOCKS = {"valve": VALVE_BLOCKS, "damper": DAMPER_BLOCKS, "module": MODULE_BLOCKS,
-                 "topmount": TOPMOUNT_BLOCKS}
+                 "topmount": TOPMOUNT_BLOCKS, "active_valve": ACTIVE_BLOCKS}
 SO, N_MODULE = _offsets(MODULE_BLOCKS)   # module offsets; the damper's are its first blocks
 TO, N_TOPMOUNT = _offsets(TOPMOUNT_BLOCKS)
 N_DAMPER = _offsets(DAMPER_BLOCKS)[1]

@@ -28,6 +28,7 @@ VALVE_KIND = {**{v: 0 for v in SHIMS}, **{v: 1 for v in INTAKES}}
 CHANNELS = {
     "valve": ("flow [m^3/s]", "dp [Pa]", "lift [m]", "dissipated power [W]"),
     "topmount": ("displacement [m]", "velocity [m/s]", "top mount force [N]", "dissipated power [W]"),
+    "active_valve": ("dp [Pa]", "flow [m^3/s]", "p control [Pa]", "lift main stage [m]"),
 }
 
 
@@ -118,6 +119,13 @@ def simulate(p: np.ndarray, excitation: Excitation, configuration: str, *, curre
         y0[0] = p[run + BENCH_P]
     elif configuration == "topmount":
         y0 = np.zeros(len(state_names("topmount")))
+    elif configuration == "active_valve":  # pressure bench: dp prescribed, outlet at the back pressure
+        p[run + BENCH_P] = bench["bench_back_pressure"]
+        p[PO["chambers"] + ch.T_AMB] = oil_T
+        y0 = np.zeros(len(state_names("active_valve")))
+        y0[sv.I] = current
+        y0[sv.E] = p[PO["active_valve"] + sv.R] * current / p[PO["active_valve"] + sv.KI]
+        y0[sv.PK] = p[run + BENCH_P]
     else:
         p[PO["chambers"] + ch.T_AMB] = oil_T
         y0 = _rest_damper(p, configuration, float(excitation.value[0]), oil_T, rest["P0"], rest["V_gas0"], None)

@@ -9,7 +9,7 @@ range) once it saturates (Vaughan & Gamble, ASME J. Dyn. Syst. Meas. Control
 118 (1996) 705; Manring, Hydraulic Control Systems, 2005, 6.2). Pilot: a
 poppet of seat diameter D_PL, mass M_P, opening spring (preload F_P0, rate
 K_P), viscous damping C_P, closed by the magnetic force and by its flow
-force 2 CdA dp cos(theta) (Merritt 1967 5.3). It relieves a control chamber
+force 2 CdA dp cos(theta) (Merritt 1967 5.3), as is the main stage. It relieves a control chamber
 (volume V_K) fed from the inlet through a fixed orifice A_F. Main stage: a
 disc (mass M_M, seat diameter D_M, inlet area A_M inside the seat, control
 area A_K behind it, spring K_M with preload F_M0) that opens when the inlet
@@ -100,8 +100,9 @@ def active_valve(y, s, p, o, i_cmd, P_in, P_out, rho, mu, dy):
     Q_f = throttle(P_in - Pk, _duct(mu, p[o + A_F], p[o + L_F]), cd * p[o + A_F], rho)
     Gs, Gds = hunt_crossley(-xm, -vm, p[o + K_C], p[o + LAM_C], p[o + EPS])
     Gt, Gdt = hunt_crossley(xm - p[o + XM_MAX], vm, p[o + K_C], p[o + LAM_C], p[o + EPS])
+    F_flow_m = 2.0 * A_mn * (P_in - P_out) * p[o + COS_JET]  # the main jet's closing flow force (Merritt 5.3)
     f_m = (P_in * p[o + A_M] + P_out * (p[o + A_K] - p[o + A_M]) - Pk * p[o + A_K] - p[o + F_M0] - p[o + K_M] * xm
-           + Gs - Gt - p[o + C_M] * vm)
+           - F_flow_m + Gs - Gt - p[o + C_M] * vm)
     dy[s + XM] = vm
     dy[s + VM] = f_m / p[o + M_M]
     loss = ((P_in - P_out) * (Q_m + Q_b) + (P_in - Pk) * Q_f + (Pk - P_out) * Q_p + p[o + C_P] * vp * vp
