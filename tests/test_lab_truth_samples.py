@@ -81,3 +81,28 @@ def test_bad_truth_sample_exits_2_naming_file_and_key(tmp_path, capsys, edit, ke
     err = capsys.readouterr().err
     assert rc == 2 and str(p) in err and key in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_design_variants_reach_the_truths_own_parts():
+    """A design variant changes the truth's parts as the design says: the
+    softer piston-rebound stack has its initial stiffness scaled as the
+    design's (shim thickness ~ stiffness^(1/3)), the stiffer top mount its
+    rubber, another valve datasheet the solenoid; the baseline is untouched."""
+    from dampertwin.variants import load_variant
+
+    nominal = load(NOMINAL)
+    base, _, _ = build(nominal, nominal)
+    soft = load_variant(CONF / "variant" / "lower_piston_rebound.yaml").apply(nominal)
+    p, _, _ = build(soft, nominal)
+    g0, g1 = nominal.group("piston_rebound"), soft.group("piston_rebound")
+    ratio = (g1["a"] * g1["b"] + g1["c"] * g1["d"]) / (g0["a"] * g0["b"] + g0["c"] * g0["d"])
+    i = tp.index("piston_rebound.K1")
+    assert p[i] / base[i] == pytest.approx(ratio, rel=1e-9) and ratio < 1
+    mount = load_variant(CONF / "variant" / "alternative_top_mount.yaml").apply(nominal)
+    p, _, _ = build(mount, nominal)
+    assert p[tp.index("mount.K_E")] / base[tp.index("mount.K_E")] == pytest.approx(1.6)
+    valve = load_variant(CONF / "variant" / "different_active_valve.yaml").apply(nominal)
+    p, _, _ = build(valve, nominal)
+    assert p[tp.index("active_valve.F_S")] > base[tp.index("active_valve.F_S")]
+    same = np.flatnonzero(p != base)
+    assert {tp.PARAM_NAMES[k].split(".")[0] for k in same} == {"active_valve"}
