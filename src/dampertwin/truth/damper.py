@@ -40,9 +40,13 @@ T_MOUNT, T_FIX = TO["mount"], TO["fixture"]
 
 @njit(**JIT)
 def prescribed(t, p, ex):
-    """Prescribed input and its rate at t, linear between the samples ex[0]
-    (value) and ex[1] (rate); before the record: the first value at rest."""
-    r = (t - p[RUN + EX_T0]) / p[RUN + EX_DT]
+    """Prescribed input and its rate at t: between two samples the cubic
+    Bezier curve through the sample values with the sampled rates as end
+    tangents (control points u0 + r0 h/3, u1 - r1 h/3), evaluated by de
+    Casteljau's construction: smooth (C1), so the integrator need not stop
+    at every sample. Before the record: the first value at rest."""
+    h = p[RUN + EX_DT]
+    r = (t - p[RUN + EX_T0]) / h
     n = ex.shape[1]
     if r <= 0.0:
         return ex[0, 0], 0.0
@@ -50,7 +54,16 @@ def prescribed(t, p, ex):
         return ex[0, n - 1], ex[1, n - 1] if r <= n - 1 + 1e-9 else 0.0
     k = int(r)
     f = r - k
-    return ex[0, k] + f * (ex[0, k + 1] - ex[0, k]), ex[1, k] + f * (ex[1, k + 1] - ex[1, k])
+    b0 = ex[0, k]
+    b3 = ex[0, k + 1]
+    b1 = b0 + ex[1, k] * h / 3.0
+    b2 = b3 - ex[1, k + 1] * h / 3.0
+    c0 = b0 + f * (b1 - b0)
+    c1 = b1 + f * (b2 - b1)
+    c2 = b2 + f * (b3 - b2)
+    d0 = c0 + f * (c1 - c0)
+    d1 = c1 + f * (c2 - c1)
+    return d0 + f * (d1 - d0), 3.0 * (d1 - d0) / h
 
 
 @njit(**JIT)

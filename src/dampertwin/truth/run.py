@@ -22,8 +22,11 @@ from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, 
 from .params import INTAKES, SHIMS, index
 
 SETTLE_S = 0.3  # [s] rest before the record: valves, driver, fixture and rubber find their rest state
-RTOL = 1e-6     # the truth's tolerances (states scaled by layout's declared scales)
-ATOL = 1e-6
+# The truth's tolerances on the states scaled by layout's declared scales. 1e-5 against 1e-6 on 2 s of the
+# module random test: rod acceleration within 0.09 m/s^2 (sensor noise 0.5 m/s^2), top-mount force within
+# 0.05 N (noise 3 N), at 0.6x the CPU time.
+RTOL = 1e-5
+ATOL = 1e-5
 VALVE_KIND = {**{v: 0 for v in SHIMS}, **{v: 1 for v in INTAKES}}
 CHANNELS = {
     "valve": ("flow [m^3/s]", "dp [Pa]", "lift [m]", "dissipated power [W]"),
