@@ -50,17 +50,20 @@ TRUTH_NOMINAL = {
     # piston band: 8 um radial clearance over 8 mm (new part); bypass: six holes through 1.75 mm of wall
     "chambers.BAND_H": 8e-6, "chambers.BAND_L": 8e-3, "chambers.N_BP": 6.0, "chambers.L_BP": 1.75e-3,
     # reserve: nitrogen; thermal time constant 0.8 s; 150 cm^3 of reserve oil; Henry (air in mineral oil:
-    # 9 % by volume per bar, Bunsen 0.09); surface dissolution over 120 s; bubbles: release 2 ms, dissolve 5 s
+    # 9 % by volume per bar, Bunsen 0.09); surface dissolution over 120 s; entrained air: released over ~1 s,
+    # dissolved over ~20 s (air release is far slower than vapour cavitation: Gholizadeh, Burton & Schoenau,
+    # Int. J. Fluid Power 13 (2012) 7; with a 2 ms release the oil, saturated at the precharge, foamed within
+    # a rebound stroke and the damper lost half its compression force)
     "gas.R_S": 296.8, "gas.C_V": 743.0, "tau_thermal": 0.8, "reserve_oil": 1.5e-4, "gas.S_H": 0.09,
-    "gas.TAU_S": 120.0, "gas.ALPHA_N": 1e-5, "gas.TAU_REL": 2e-3, "gas.TAU_DIS": 5.0, "gas.DISSOLVE": 1.0,
+    "gas.TAU_S": 120.0, "gas.ALPHA_N": 1e-5, "gas.TAU_REL": 1.0, "gas.TAU_DIS": 20.0, "gas.DISSOLVE": 1.0,
     "gas.HEAT": 1.0, "alpha_free": None,  # None: the design's oil.chi
     # shim stacks (drawings): radii [m], shim thickness [m] and count, crossover gap, preload [N], seat land
     "piston_rebound.a": 0.013, "piston_rebound.b": 0.008, "piston_rebound.r1": 0.009, "piston_rebound.t1": 3e-4,
-    "piston_rebound.n1": 4, "piston_rebound.a2": 0.0115, "piston_rebound.t2": 3e-4, "piston_rebound.n2": 2,
-    "piston_rebound.gap": 4e-5, "piston_rebound.preload": None, "piston_rebound.w_s": 5e-4,
+    "piston_rebound.n1": 4, "piston_rebound.a2": 0.0115, "piston_rebound.t2": 3e-4, "piston_rebound.n2": 1,
+    "piston_rebound.gap": 1.2e-4, "piston_rebound.preload": None, "piston_rebound.w_s": 5e-4,
     "base_compression.a": 0.012, "base_compression.b": 0.0075, "base_compression.r1": 0.0085,
     "base_compression.t1": 3e-4, "base_compression.n1": 4, "base_compression.a2": 0.0105,
-    "base_compression.t2": 3e-4, "base_compression.n2": 2, "base_compression.gap": 4e-5,
+    "base_compression.t2": 3e-4, "base_compression.n2": 1, "base_compression.gap": 1.2e-4,
     "base_compression.preload": None, "base_compression.w_s": 5e-4,
     # shim-to-shim friction (steel on steel in oil, mu ~ 0.1) with a 2 N/um interface stiffness; squeeze-film
     # damping ~0.6 of critical (THESIS-ERRATA 28 gives ~0.7 for the model's valves)
@@ -68,7 +71,7 @@ TRUTH_NOMINAL = {
                                                 ("L_BLEED", 1e-3), ("K_C", 1e11), ("LAM_C", 0.5),
                                                 ("EPS", 5e-7), ("FRICTION", 1.0))},
     # intake valves: coil spring rates and seat land width (drawings)
-    "piston_intake.K_S": 1.2e6, "base_intake.K_S": 9e5, "piston_intake.w_s": 6e-4, "base_intake.w_s": 6e-4,
+    "piston_intake.K_S": 6e5, "base_intake.K_S": 4.5e5, "piston_intake.w_s": 6e-4, "base_intake.w_s": 6e-4,
     **{f"{v}.{k}": x for v in INTAKES for k, x in (("C", 70.0), ("CD", 0.68), ("K_C", 1e11), ("LAM_C", 0.5),
                                                   ("EPS", 5e-7))},
     # solenoid valve: 4 ohm / 20 mH coil, PI driver at ~500 Hz on a 13.5 V supply; 3 mm pilot; 12 mm main stage;
@@ -76,19 +79,19 @@ TRUTH_NOMINAL = {
     # against the control chamber, a relief-valve instability, and costs 3x the steps)
     "active_valve.R": 4.0, "active_valve.L": 0.02, "active_valve.KP": 60.0, "active_valve.KI": 1.2e4,
     "active_valve.U_MAX": 13.5, "active_valve.F_S": 3.74, "active_valve.I_S": 0.3, "active_valve.D_PL": 3e-3,
-    "active_valve.W_PL": 3e-4, "active_valve.M_P": 2e-3, "active_valve.K_P": 2000.0, "active_valve.F_P0": 2.2,
+    "active_valve.W_PL": 3e-4, "active_valve.M_P": 2e-3, "active_valve.K_P": 2000.0, "active_valve.F_P0": 2.6,
     "active_valve.C_P": 60.0, "active_valve.XP_MAX": 3e-4, "active_valve.COS_JET": math.cos(math.radians(69.0)),
     "active_valve.A_F": 2.8e-7, "active_valve.L_F": 1e-3, "active_valve.V_K": 1e-6, "active_valve.D_M": 0.012,
     "active_valve.W_M": 5e-4, "active_valve.A_M": math.pi / 4 * 0.012 ** 2, "active_valve.A_K": 1.2e-4,
-    "active_valve.M_M": 5e-3, "active_valve.K_M": 3.7e5, "active_valve.F_M0": 5.0, "active_valve.C_M": 150.0,
+    "active_valve.M_M": 5e-3, "active_valve.K_M": 3.0e5, "active_valve.F_M0": 5.0, "active_valve.C_M": 150.0,
     "active_valve.XM_MAX": 1.5e-3, "active_valve.A_B": 6e-7, "active_valve.L_B": 1e-3, "active_valve.CD": 0.7,
     "active_valve.K_C": 1e10, "active_valve.LAM_C": 0.5, "active_valve.EPS": 2e-7, "active_valve.DRIVER": 1.0,
     # rod seal (lip seal, pressure-loaded: mu 0.1 x pi 22 mm x 1.5 mm contact)
     "seal.F0": 55.0, "seal.K_PR": 1e-5, "seal.C_V": 50.0, "seal.K_1": 4e6, "seal.K_2": 1e6, "seal.K_3": 2.5e5,
     "seal.W_1": 0.5, "seal.W_2": 0.3, "seal.W_3": 0.2, "seal.P_EPS": 1e4,
     # top mount rubber: backbone, three Maxwell branches (0.1 s, 2 ms, 0.1 ms), Kraus/Payne
-    "mount.K_E": 7e5, "mount.K_E3": 8e10, "mount.K_1": 3e5, "mount.K_2": 3e5, "mount.K_3": 2e5,
-    "mount.C_1": 3e4, "mount.C_2": 600.0, "mount.C_3": 20.0, "mount.PHI_INF": 0.5, "mount.A_C": 3e-4,
+    "mount.K_E": 1.2e6, "mount.K_E3": 8e10, "mount.K_1": 3e5, "mount.K_2": 2e5, "mount.K_3": 2e5,
+    "mount.C_1": 3e4, "mount.C_2": 400.0, "mount.C_3": 20.0, "mount.PHI_INF": 0.5, "mount.A_C": 3e-4,
     "mount.M_K": 0.6, "mount.TAU_R": 0.2, "mount.TAU_M": 2.0, "mount.PAYNE": 1.0,
     # fixture: 12 kg crosshead on the load cell, 650 Hz, 4 % damping
     "fixture.M_F": 12.0, "fixture.K_F": 12.0 * (2 * math.pi * 650.0) ** 2,
@@ -131,7 +134,7 @@ def nominal(design) -> dict:
         v[f"{s}.M"] = float(g["m_v"])
         v[f"{s}.A_HOLE"] = float(g["A_slot"])
         v[f"{s}.F_S"] = float(g["F_preload"])
-        v[f"{s}.r_in"] = 0.5 * float(g["D_c"])
+        v[f"{s}.r_in"] = 0.5 * float(g["D_i"])  # the seat ring at the drawing's inner disc diameter
         v[f"{s}.X_MAX"] = float(d[f"constants.x_max_{s}"])
     return v
 
