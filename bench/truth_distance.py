@@ -179,7 +179,12 @@ def main() -> None:
     if a.write:
         cmd = "PYTHONPATH=src python bench/truth_distance.py --workers 2 --write " + a.write
         cmd += " --skip-random" if a.skip_random else ""
-        Path(a.write).write_text(HEADER.format(cmd=cmd, truth=TRUTH_VERSION, json=json.dumps(summary)) + md)
+        path = Path(a.write)
+        notes = ""  # the hand-written reading of the figures below the tables survives a rerun
+        if path.is_file() and NOTES in path.read_text():
+            notes = NOTES + path.read_text().split(NOTES, 1)[1]
+        path.write_text(HEADER.format(cmd=cmd, truth=TRUTH_VERSION, json=json.dumps(summary)) + md
+                        + ("\n" + notes if notes else ""))
 
 
 def report(R, variants, cur16, skip_random):
@@ -260,6 +265,7 @@ def report(R, variants, cur16, skip_random):
     return "\n\n".join(out) + "\n", summary
 
 
+NOTES = "## Reading the distance"
 HEADER = """# Distance between the model and the lab's truth ({truth})
 
 Issue 32, acceptance 4. The NOMINAL model (conf/lab/nominal.yaml and the
