@@ -95,7 +95,7 @@ def job(kind: str, case: str):
             f = proto["frequency"]
             return kind, case, {"model": kpi.rod_acceleration_extremes(fm, f, n_tr),
                                 "truth": kpi.rod_acceleration_extremes(ft, f, n_tr),
-                                "loop_model": kpi.hysteresis_area(fm.rename(columns={}), f),
+                                "loop_model": kpi.hysteresis_area(fm, f),
                                 "loop_truth": kpi.hysteresis_area(ft, f)}
         return kind, case, {"model": kpi.psd_levels(fm), "truth": kpi.psd_levels(ft)}
     if kind == "mono16":
@@ -146,8 +146,8 @@ def job(kind: str, case: str):
         m = nominal.pq_map
         k = int(np.argmin(np.abs(np.asarray(m.currents) - i)))
         pts = (5e5, 1e6, 2e6, 3e6, 4e6, 5e6)
-        return kind, case, {"dp": list(pts), "truth": [float(np.interp(x, r["dp [Pa]"], r["flow [m^3/s]"])) for x in pts],
-                            "datasheet": [float(np.interp(x, m.dps, m.flow[k])) for x in pts]}
+        truth = [float(np.interp(x, r["dp [Pa]"], r["flow [m^3/s]"])) for x in pts]
+        return kind, case, {"dp": list(pts), "truth": truth, "datasheet": [float(np.interp(x, m.dps, m.flow[k])) for x in pts]}
     raise ValueError(kind)
 
 

@@ -22,8 +22,6 @@ isothermal. A floor of nuclei ALPHA_N stays free.
 
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
 from .fluid import JIT, ramp

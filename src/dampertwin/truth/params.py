@@ -17,7 +17,7 @@ import zlib
 
 import numpy as np
 
-from . import fluid, gas, mount
+from . import fluid, gas
 from .layout import N_PARAMS, PARAM_NAMES, PO
 from .plate import shape_ratio, stack
 
@@ -114,14 +114,16 @@ def nominal(design) -> dict:
     for s, pre in zip(SHIMS, ("piston_rebound.F_preload", "base_compression.F_preload")):
         v[f"{s}.preload"] = float(d[pre])
     v.update({
-        "oil.RHO0": float(d["oil.rho_oil"]), "oil.K0": float(d["oil.K_oil"]), "oil.P_REF": float(d["constants.P_ref"]),
+        "oil.RHO0": float(d["oil.rho_oil"]), "oil.K0": float(d["oil.K_oil"]),
+        "oil.P_REF": float(d["constants.P_ref"]),
         "oil.T0": float(d["oil.T"]), "oil.P_ATM": float(d["constants.P_atm"]), "nu": float(d["oil.nu"]),
         "P0": float(d["oil.P_0"]), "T": float(d["oil.T"]), "V_gas0": float(d["constants.V_gas0"]),
         "chambers.D_PT": float(d["geometry.D_PT"]), "D_R": float(d["geometry.D_R"]),
         "chambers.L_R0": float(d["geometry.l_r0"]), "chambers.L_C0": float(d["geometry.l_c0"]),
         "chambers.V_B": float(d["geometry.V_b"]), "chambers.M_ROD": float(d["geometry.M_rod"]),
-        "chambers.A_BP": float(d["constants.A_bypass"]), "E": float(d["third_tube.E"]), "nu_p": float(d["third_tube.nu_p"]),
-        "pt_r_i": float(d["constants.pt_r_i"]), "pt_r_o": float(d["constants.pt_r_o"]), "tt_r_i": float(d["third_tube.r_i"]),
+        "chambers.A_BP": float(d["constants.A_bypass"]), "E": float(d["third_tube.E"]),
+        "nu_p": float(d["third_tube.nu_p"]), "pt_r_i": float(d["constants.pt_r_i"]),
+        "pt_r_o": float(d["constants.pt_r_o"]), "tt_r_i": float(d["third_tube.r_i"]),
         "tt_r_o": float(d["third_tube.r_o"]), "tt_ratio": float(d["constants.wall_ratio_third_tube"]),
     })
     for s in SHIMS:
@@ -175,8 +177,8 @@ def derive(v: dict, effects: dict | None = None, as_built_seed: int | None = Non
     q["gas.V_TOT"] = v["V_gas0"] + v["reserve_oil"]
     q["gas.H"] = v["P0"] * v["V_gas0"] / (v["gas.R_S"] * v["T"]) * v["gas.C_V"] / v["tau_thermal"]
     q["gas.K_H"] = v["gas.S_H"] * _gas_density_ref(v) / v["oil.P_REF"]  # [kg/(m^3 Pa)]
-    q["gas.ALPHA_TOT"] = gas.equilibrium_free_gas(v["alpha_free"], v["P0"], {k[4:]: v[k] for k in v if k.startswith("gas.")},
-                                                  v["oil.P_REF"])
+    gas_inputs = {k[4:]: v[k] for k in v if k.startswith("gas.")}
+    q["gas.ALPHA_TOT"] = gas.equilibrium_free_gas(v["alpha_free"], v["P0"], gas_inputs, v["oil.P_REF"])
     for s in SHIMS:
         face = stack(v[f"{s}.a"], v[f"{s}.b"], v[f"{s}.t1"], int(v[f"{s}.n1"]), E_STEEL, NU_STEEL, v[f"{s}.r1"])
         back = stack(v[f"{s}.a2"], v[f"{s}.b"], v[f"{s}.t2"], int(v[f"{s}.n2"]), E_STEEL, NU_STEEL, v[f"{s}.r1"])
@@ -224,4 +226,4 @@ def index(name: str) -> int:
     return PO[b] + dict(PARAM_BLOCKS)[b].index(n)
 
 
-__all__ = ["nominal", "derive", "index", "mount"]
+__all__ = ["nominal", "derive", "index"]

@@ -12,14 +12,15 @@ from ..excitation import Excitation
 from ..solver import RunStats, integrate
 from . import chambers as ch
 from . import fixture as fx
+from . import fluid
 from . import gas as gs
 from . import mount as mt
 from . import solenoid as sv
 from .damper import RHS
 from .fluid import density, ramp
-from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, EX_T0, N_OUT, OUTPUTS, PO, SO, TO,
+from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, EX_T0, N_OUT, OUTPUTS, PO, SO,
                      scales, state_names)
-from .params import INTAKES, SHIMS, index
+from .params import INTAKES, SHIMS
 
 SETTLE_S = 0.3  # [s] rest before the record: valves, driver, fixture and rubber find their rest state
 # The truth's tolerances on the states scaled by layout's declared scales. 1e-5 against 1e-6 on 2 s of the
@@ -53,22 +54,20 @@ class TruthResult:
         return self.stats.ok
 
 
-def _get(p, name):
-    return float(p[index(name)])
-
-
-def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0, reserve_oil):
+def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0):
+    """Rough rest state of the damper / module (pressures at the precharge,
+    valves on their seats, gas in equilibrium; :func:`simulate` lets it settle)."""
     n = len(state_names(configuration))
     y = np.zeros(n)
     oo, co, go = PO["oil"], PO["chambers"], PO["gas"]
-    P_ref = p[oo + 3]
+    P_ref = p[oo + fluid.P_REF]
     s0 = u0
     A_r, A_b = p[co + ch.A_R], p[co + ch.A_B]
     vols = (A_r * (p[co + ch.L_R0] - s0), A_b * (p[co + ch.L_C0] + s0), p[co + ch.V_B])
     kap = (p[co + ch.KAPPA_PT], p[co + ch.KAPPA_PT], p[co + ch.KAPPA_TT])
     for k, (V0, kk) in enumerate(zip(vols, kap)):
         e = p[go + gs.ALPHA_N] + ramp(p[go + gs.ALPHA_TOT] - p[go + gs.S_H] * P0 / P_ref, gs.ALPHA_EPS)
-        V = V0 * (1 + kk * (P0 - p[oo + 9]))
+        V = V0 * (1 + kk * (P0 - p[oo + fluid.P_ATM]))
         y[SO["chambers"] + k] = P0
         y[SO["chambers"] + 3 + k] = e * V / (1 + e * P_ref / P0)
     y[SO["chambers"] + ch.T_OIL] = oil_T
@@ -83,7 +82,7 @@ def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0, reserve_oil):
     y[av + sv.I] = i
     y[av + sv.E] = p[ao + sv.R] * i / p[ao + sv.KI]
     y[av + sv.PK] = P0
-    F0 = -(P0 - p[oo + 9]) * (A_b - A_r)
+    F0 = -(P0 - p[oo + fluid.P_ATM]) * (A_b - A_r)
     fo, mo = PO["fixture"], PO["mount"]
     if configuration == "module":
         X = mt.static_deflection(F0, p[mo + mt.K_E], p[mo + mt.K_E3])
@@ -131,7 +130,7 @@ def simulate(p: np.ndarray, excitation: Excitation, configuration: str, *, curre
         y0[sv.PK] = p[run + BENCH_P]
     else:
         p[PO["chambers"] + ch.T_AMB] = oil_T
-        y0 = _rest_damper(p, configuration, float(excitation.value[0]), oil_T, rest["P0"], rest["V_gas0"], None)
+        y0 = _rest_damper(p, configuration, float(excitation.value[0]), oil_T, rest["P0"], rest["V_gas0"])
         if start_current is not None:
             y0[SO["active_valve"] + sv.I] = start_current
             y0[SO["active_valve"] + sv.E] = 0.0
