@@ -159,3 +159,19 @@ def test_reserve_gas_is_polytropic_between_isothermal_and_adiabatic(tau, t_c, ex
     assert P * V ** exponent == pytest.approx(P0 * V0 ** exponent, rel=0.002)
     other = 1.4 if exponent == 1.0 else 1.0
     assert P * V ** other != pytest.approx(P0 * V0 ** other, rel=0.05)
+
+
+def test_fixture_resonates_and_off_means_a_rigid_frame():
+    """With the fixture the load cell rings at its resonance
+    sqrt(K_F / M_F) / 2 pi after a force step; switched off, the load cell
+    reads the damper's force bit for bit."""
+    p, rest, v = truth(fixture=False)
+    ex = Excitation.sine(0.01, 4.0, 0.3, ramp=0.1)
+    r = simulate(p, ex, "damper", current=0.9, rest=rest, rate=10_000.0)
+    assert np.array_equal(r["rod force [N]"], r["actuator force [N]"])
+    p, rest, v = truth()
+    r = simulate(p, ex, "damper", current=0.9, rest=rest, rate=20_000.0)
+    ring = r["rod force [N]"] - r["actuator force [N]"]
+    f, P = __import__("scipy.signal", fromlist=["welch"]).welch(ring, fs=20_000.0, nperseg=2048)
+    f_n = math.sqrt(v["fixture.K_F"] / v["fixture.M_F"]) / (2 * math.pi)
+    assert abs(f[np.argmax(P * (f > 100))] - f_n) < 0.05 * f_n
