@@ -168,7 +168,7 @@ def main(argv=None) -> int:
     conf = ROOT / "conf"
     cfg = entry.load_config(conf)
     design = load(conf / "design" / "baseline.yaml")
-    base = {k: v for k, v in load_sample(conf / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    base = {k: v for k, v in load_sample(conf / "lab" / "lab2" / "sample.yaml").items() if not k.startswith("_")}
     only = [tuple(x.split(":")) for x in args.tests.split(",")]
     tests = {}
     for t, c in only:

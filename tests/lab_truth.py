@@ -40,7 +40,7 @@ def true_force_delay(sample: str | Path, protocol: str = "topmount") -> float:
 
     proto = load_protocol(ROOT / "conf" / "test" / f"{protocol}.yaml")
     fs = float(proto["rate"])
-    real = _sensor_specs(load_sample(ROOT / "conf" / "lab" / sample)["benches"])["force [N]"]
+    real = _sensor_specs(load_sample(ROOT / "conf" / "lab" / "lab2" / sample)["benches"])["force [N]"]
     documented = {"filter": "butter", "order": 2, "corner": proto["sensors"]["force"]}
     return _group_delay(real, fs) - _group_delay(documented, fs)
 
@@ -48,7 +48,7 @@ def true_force_delay(sample: str | Path, protocol: str = "topmount") -> float:
 def true_design(case: str | None, sample: str | Path = "sample.yaml"):
     """The real part behind a design case (None: the baseline) of a lab sample."""
     conf = ROOT / "conf"
-    s = load_sample(conf / "lab" / sample)
+    s = load_sample(conf / "lab" / "lab2" / sample)
     d = load(conf / "lab" / "nominal.yaml")
     if case:
         d = load_variant(conf / "variant" / f"{case}.yaml").apply(d)

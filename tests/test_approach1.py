@@ -198,7 +198,7 @@ def test_full_study_recovers_the_hidden_valves(full_fits):
     from dampertwin.variants import VALVE_DESIGNS, load_variant
     from lab_truth import stiffness_curve_error
 
-    sample = load_sample(ROOT / "conf" / "lab" / "sample.yaml")
+    sample = load_sample(ROOT / "conf" / "lab" / "lab2" / "sample.yaml")
     nominal = load(ROOT / "conf" / "lab" / "nominal.yaml")
     model = load(BASELINE)
     worst = {}
@@ -214,7 +214,7 @@ def test_full_study_recovers_the_hidden_valves(full_fits):
 def test_full_study_recovers_gas_content_and_bulk_modulus(full_fits):
     from dampertwin.lab import load_sample
 
-    sample = load_sample(ROOT / "conf" / "lab" / "sample.yaml")
+    sample = load_sample(ROOT / "conf" / "lab" / "lab2" / "sample.yaml")
     got = full_fits["compliance"]["values"]
     for key in ("oil.chi", "oil.K_oil"):
         err = abs(got[key] - sample["values"][key]) / sample["values"][key]

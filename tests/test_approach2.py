@@ -30,7 +30,7 @@ def short_training():
     proto = dict(load_protocol(CONF / "test" / "training.yaml"))
     assert proto["configuration"] == "damper"
     proto.update(strokes=[0.01], velocities=[0.5, 1.0], cycles=2, currents=[1.6], rate=2000.0)
-    sample = lab.load_sample(CONF / "lab" / "sample.yaml")
+    sample = lab.load_sample(CONF / "lab" / "lab2" / "sample.yaml")
     nominal = lab.load_design(CONF / "lab" / "nominal.yaml")
     rng = np.random.default_rng(1)
     frames = [lab.record(r, nominal, sample, rng) for r in build_runs(proto, 0)]

@@ -32,7 +32,7 @@ KEYS = {"verdict", "effects", "group", "candidates", "gap", "where", "design"}
 
 
 def _lab(tmp: Path, name: str, seed: int, only=ONLY, **spec) -> Path:
-    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "lab2" / "sample.yaml").items() if not k.startswith("_")}
     s = hidden_sample(base, **spec)
     s["nominal"] = str(ROOT / "conf" / "lab" / "nominal.yaml")
     p = tmp / f"{name}.yaml"
@@ -274,7 +274,7 @@ def test_a_single_record_names_no_effect(tmp_path):
     parameters, so no effect is named -- not even the active valve's lag, which one mono-sine record
     shows far beyond noise (without this rule it was `named` on its in-sample gain) -- and the report
     says the gaps are in-sample."""
-    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "lab2" / "sample.yaml").items() if not k.startswith("_")}
     s = hidden_sample(base, effects={"active_valve_lag": True})
     s["nominal"] = str(ROOT / "conf" / "lab" / "nominal.yaml")
     (tmp_path / "lag.yaml").write_text(yaml.safe_dump(s))
@@ -376,7 +376,7 @@ def test_flow_bench_records_pin_the_valves(tmp_path):
     naming the file."""
     from dampertwin.discrepancy.workflow import Problem, assign_folds, mean_z2
 
-    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "lab2" / "sample.yaml").items() if not k.startswith("_")}
     s = hidden_sample(base)
     s["nominal"] = str(ROOT / "conf" / "lab" / "nominal.yaml")
     (tmp_path / "s.yaml").write_text(yaml.safe_dump(s))

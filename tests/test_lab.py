@@ -25,7 +25,7 @@ from dampertwin.sensors import quantise, sensor_lowpass, transducer
 from conftest import ROOT
 
 CONF = ROOT / "conf"
-SAMPLE = CONF / "lab" / "sample.yaml"
+SAMPLE = CONF / "lab" / "lab2" / "sample.yaml"
 NOMINAL = CONF / "lab" / "nominal.yaml"
 SUBSET = [("monosine", "baseline_1.6"), ("flowbench", "piston_intake"), ("topmount", "alternative")]
 
@@ -204,10 +204,10 @@ def test_cli_writes_the_standard_layout(tmp_path, capsys):
 
 def test_check_sample_accepts_the_shipped_samples():
     nominal = load(NOMINAL)
-    for name in ("sample.yaml", "sample2.yaml"):
+    for name in ("sample.yaml", "sample2.yaml", "lab2/sample.yaml", "lab2/sample2.yaml"):
         s = load_sample(CONF / "lab" / name)
         check_sample(s, nominal)
-        assert Path(s["_path"]).name == name
+        assert Path(s["_path"]).name == Path(name).name
 
 
 def test_warm_up_test_records_the_oil_temperature(tmp_path):

@@ -21,6 +21,12 @@ The lab is not the fitted model's path (no inverse crime):
   and scatters between runs (viscosity and bulk modulus follow it), as does
   the actuator gain.
 
+A ``dampertwin-lab 3`` sample (``generator: dampertwin-lab 3``, a ``truth:``
+section instead of ``factors`` / ``values`` / ``effects``) is measured on the
+reference damper of :mod:`dampertwin.truth`, written from other physics than
+the model (issue 32); its records name the truth's version. Lab-2 samples
+(``conf/lab/lab2/``) keep the path above: the committed data/measured.
+
 Only this module, the ``dampertwin lab`` command and the tests read
 ``conf/lab/``; calibration never does. The shipped samples were built from
 ``conf/lab/nominal.yaml``, a frozen copy of the baseline drawings: editing
@@ -54,6 +60,10 @@ from .simulation import simulate
 from .variants import TOP_MOUNTS, VALVE_DESIGNS, Variant, load_variants
 
 LAB_VERSION = "dampertwin-lab 2"
+LAB3_VERSION = "dampertwin-lab 3"  # the truth of other physics (dampertwin.truth)
+# The sample the DVC lab stage measures. Still the lab-2 sample (the model's equations) that made the committed
+# data/measured; "sample.yaml" (lab 3, the truth) switches the stage, and every result downstream, to the truth.
+STAGE_SAMPLE = "lab2/sample.yaml"
 TRUTH_RTOL = 1e-8        # the truth's integration tolerance (the fits: 1e-4)
 # The truth's absolute error floor, in units of each state's declared scale
 # (solver.integrate scales the states: 3e-7 of 10 N for a Dahl friction force,
@@ -83,6 +93,8 @@ THERMOCOUPLE_NOISE = 0.03  # [K] one sigma
 PRECHARGE_FILL = {"offset": 5000.0, "scatter": 0.003}
 
 REQUIRED_KEYS = ("factors", "values", "effects", "benches")
+REQUIRED_KEYS_3 = ("truth", "benches")
+TRUTH_KEYS = ("values", "effects")
 OPTIONAL_KEYS = ("generator", "seed_offset", "nominal", "description")
 BENCH_KEYS = {
     "actuator": {"gain", "delay", "natural_frequency", "damping"},
@@ -120,6 +132,8 @@ def load_sample(path: str | Path) -> dict:
         raise LabError(str(e)) from None
     if not isinstance(doc, dict):
         raise LabError(f"{path}: expected a mapping with the keys {', '.join(REQUIRED_KEYS)}")
+    if doc.get("generator") == LAB3_VERSION:
+        return _load_sample3(path, doc)
     bad = []
     for k in doc:
         if k not in REQUIRED_KEYS + OPTIONAL_KEYS:
@@ -153,6 +167,61 @@ def load_sample(path: str | Path) -> dict:
     doc["_path"] = str(path)
     doc["_hash"] = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
     return doc
+
+
+def _load_sample3(path: Path, doc: dict) -> dict:
+    """A lab-3 sample: the truth's values and effects, the benches."""
+    from .truth.params import TruthParameterError, check_effects, check_values
+
+    bad = [f"{k}: unknown key; expected {', '.join(REQUIRED_KEYS_3 + OPTIONAL_KEYS)}"
+           for k in doc if k not in REQUIRED_KEYS_3 + OPTIONAL_KEYS]
+    for k in REQUIRED_KEYS_3:
+        if k not in doc:
+            bad.append(f"{k}: missing")
+        elif not isinstance(doc[k], dict):
+            bad.append(f"{k}: expected a mapping")
+    if bad:
+        raise LabError(f"{path}: " + "; ".join(bad))
+    t = doc["truth"]
+    bad += [f"truth.{k}: unknown key; expected {', '.join(TRUTH_KEYS)}" for k in t if k not in TRUTH_KEYS]
+    for k in TRUTH_KEYS:
+        if not isinstance(t.get(k, {}), dict):
+            bad.append(f"truth.{k}: expected a mapping")
+    if not bad:
+        for check, sect in ((check_values, "values"), (check_effects, "effects")):
+            try:
+                check(t.get(sect, {}), f"truth.{sect}")
+            except TruthParameterError as e:
+                bad.append(str(e))
+        bad += [f"truth.values.{k}: {v!r}; expected a finite number (SI)" for k, v in t.get("values", {}).items()
+                if not _finite(v)]
+        bad += [f"truth.effects.{k}: {v!r}; expected true or false" for k, v in t.get("effects", {}).items()
+                if not isinstance(v, bool)]
+    if not isinstance(doc.get("seed_offset", 0), int) or isinstance(doc.get("seed_offset", 0), bool):
+        bad.append(f"seed_offset: {doc['seed_offset']!r}; expected an integer")
+    bad += _check_benches(doc["benches"])
+    if bad:
+        raise LabError(f"{path}: " + "; ".join(bad))
+    doc.setdefault("seed_offset", 0)
+    doc["_path"] = str(path)
+    doc["_hash"] = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+    return doc
+
+
+def is_truth_sample(sample: dict) -> bool:
+    """A lab-3 sample: measured on dampertwin.truth."""
+    return sample.get("generator") == LAB3_VERSION
+
+
+def truth_part(design: Design, nominal: Design, sample: dict, P0: float | None = None):
+    """(parameters, rest) of the truth behind a design case of a lab-3 sample,
+    as built (per sample)."""
+    from .truth.params import as_built_seed
+    from .truth.part import build
+
+    p, rest, _ = build(design, nominal, sample["truth"], as_built_seed(sample["seed_offset"]), P0=P0,
+                       where=f"{sample.get('_path', '<sample>')}: truth")
+    return p, rest
 
 
 def _check_benches(b: dict) -> list[str]:
@@ -234,6 +303,14 @@ def check_sample(sample: dict, nominal: Design) -> None:
     """Every key of the sample names a design key, every effect a known
     switch, and the real part is a valid design (LabError naming the file)."""
     where = sample.get("_path", "<sample>")
+    if is_truth_sample(sample):
+        from .truth.params import TruthParameterError
+
+        try:
+            truth_part(nominal, nominal, sample)
+        except (TruthParameterError, KeyError, ValueError, np.linalg.LinAlgError) as e:
+            raise LabError(f"{where}: the truth's part is not valid: {e}") from None
+        return
     bad = []
     for k in sample["effects"]:
         if k not in nominal.effects:
@@ -316,7 +393,8 @@ def _sensor_specs(benches: dict) -> dict:
 
 
 def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, bench: dict | None = None,
-           oil_dT: float = 0.0, gain_scatter: float = 1.0, temperature: bool = False) -> pd.DataFrame:
+           oil_dT: float = 0.0, gain_scatter: float = 1.0, temperature: bool = False,
+           nominal: Design | None = None) -> pd.DataFrame:
     """Measure one run on the hidden sample behind ``design`` with the oil
     ``oil_dT`` [K] warmer than the design's and the actuator gain scattered;
     ``temperature``: the oil temperature recorded too (a thermocouple). A run
@@ -325,8 +403,35 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
     b = sample["benches"]
     a = b["actuator"]
     real = actuate(run.excitation, a["gain"] * gain_scatter, a["delay"], a.get("natural_frequency"), a.get("damping"))
-    part = sample_design(design, sample)
     precharge = run.meta.get("precharge [Pa]")
+    if is_truth_sample(sample):
+        r = _truth_run(run, design, sample, rng, bench, oil_dT, real, precharge, nominal)
+    else:
+        r = _model_run(run, design, sample, rng, bench, oil_dT, real, precharge)
+    return _recorded(run, r, b, rng, precharge, oil_dT, temperature)
+
+
+def _truth_run(run, design, sample, rng, bench, oil_dT, real, precharge, nominal):
+    """One run on the truth of a lab-3 sample: its own oil physics at the
+    oil temperature (no viscosity / modulus factors)."""
+    from .truth.run import simulate as truth_simulate
+
+    P0 = None
+    if precharge is not None:
+        pf = {**PRECHARGE_FILL, **sample["benches"].get("precharge", {})}
+        P0 = (float(precharge) + pf["offset"]) * (1.0 + pf["scatter"] * rng.standard_normal())
+    p, rest = truth_part(design, nominal if nominal is not None else design, sample, P0)
+    r = truth_simulate(p, real, run.configuration, current=run.current, bench_valve=run.bench_valve, bench=bench,
+                       rate=run.rate, rest=rest, oil_T=rest["T"] + oil_dT)
+    if not r.ok:
+        raise LabError(f"lab (truth) simulation of {run.test}/{run.name} failed: {r.stats.message}")
+    return r
+
+
+def _model_run(run, design, sample, rng, bench, oil_dT, real, precharge):
+    """One run of a lab-2 sample: the model's equations on the sample's part."""
+    b = sample["benches"]
+    part = sample_design(design, sample)
     if precharge is not None:  # the friction test refills the reserve gas to the run's precharge (recorded)
         pf = {**PRECHARGE_FILL, **b.get("precharge", {})}
         p_real = (float(precharge) + pf["offset"]) * (1.0 + pf["scatter"] * rng.standard_normal())
@@ -339,6 +444,11 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
                  rate=run.rate, bench=bench, rtol=TRUTH_RTOL, atol=TRUTH_ATOL, method="rodas4")
     if not r.ok:
         raise LabError(f"lab simulation of {run.test}/{run.name} failed: {r.stats.message}")
+    return r
+
+
+def _recorded(run, r, b, rng, precharge, oil_dT, temperature) -> pd.DataFrame:
+    """The benches' transducers on a run's channels."""
     fs = run.rate
     noise, specs = {TEMPERATURE: THERMOCOUPLE_NOISE, **b["noise"]}, {TEMPERATURE: THERMOCOUPLE, **_sensor_specs(b)}
 
@@ -365,10 +475,17 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
         if precharge is not None:
             cols["precharge [Pa]"] = np.full(len(r.time), float(precharge))
         if temperature:  # drawn last: the other channels' noise is that of a record without it
-            cols[TEMPERATURE] = meas(TEMPERATURE, r[TEMPERATURE] + oil_dT)
+            T_oil = r[TEMPERATURE] if isinstance(r, _truth_result()) else r[TEMPERATURE] + oil_dT
+            cols[TEMPERATURE] = meas(TEMPERATURE, T_oil)
     df = pd.DataFrame(cols)
     df.insert(0, "run", run.name)
     return df
+
+
+def _truth_result():
+    from .truth.run import TruthResult
+
+    return TruthResult
 
 
 def plan(conf: Path, protocols: dict | None = None) -> list[tuple[str, str]]:
@@ -432,14 +549,23 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
     sg = b.get("scatter", {}).get("actuator_gain", 0.0)
     gains = [1.0 + sg * rng.standard_normal() for _ in runs]
     thermo = "temperature" in pc.get("sensors", {})
-    frames = [record(r, d, sample, rng, bench, oil_dT=dT, gain_scatter=g, temperature=thermo)
+    frames = [record(r, d, sample, rng, bench, oil_dT=dT, gain_scatter=g, temperature=thermo, nominal=nominal)
               for r, dT, g in zip(runs, temps, gains)]
-    meta = {"synthetic": True, "generator": LAB_VERSION, "dampertwin": __version__, "seed": s,
+    truth = {}
+    if is_truth_sample(sample):
+        from .truth import TRUTH_VERSION
+        from .truth.run import ATOL, RTOL
+
+        truth = {"truth": TRUTH_VERSION, "truth_rtol": RTOL, "truth_atol": ATOL,
+                 "note": "SYNTHETIC measurement from the dampertwin virtual laboratory: hidden sample on the "
+                         f"reference damper {TRUTH_VERSION} (other physics than the model)"}
+    meta = {"synthetic": True, "generator": LAB3_VERSION if truth else LAB_VERSION, "dampertwin": __version__,
+            "seed": s,
             "design_hash": d.hash(), "protocol": protocol, "case": case,
             "sample": Path(sample.get("_path", "sample.yaml")).name, "sample_hash": sample.get("_hash", ""),
             "truth_rtol": TRUTH_RTOL, "truth_atol": TRUTH_ATOL,
             "oil_temperature_K": {r.name: round(d["oil.T"] + dT, 3) for r, dT in zip(runs, temps)},
-            "note": "SYNTHETIC measurement from the dampertwin virtual laboratory (hidden sample)", **extra}
+            "note": "SYNTHETIC measurement from the dampertwin virtual laboratory (hidden sample)", **extra, **truth}
     return pd.concat(frames, ignore_index=True), meta
 
 
@@ -508,8 +634,8 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
 
 def generate(conf: str | Path, out: str | Path, seed: int, only: list[tuple[str, str]] | None = None,
              progress: bool = True, sample: str | Path | None = None, workers: int | None = None) -> list[Path]:
-    """The DVC lab stage: ``conf/lab/sample.yaml`` (or ``sample``) through
+    """The DVC lab stage: ``conf/lab/<STAGE_SAMPLE>`` (or ``sample``) through
     every test of the plan into ``out`` (data/measured)."""
     conf = Path(conf)
-    return run_lab(sample or conf / "lab" / "sample.yaml", out, seed=seed, progress=progress, conf=conf,
+    return run_lab(sample or conf / "lab" / STAGE_SAMPLE, out, seed=seed, progress=progress, conf=conf,
                    only=only, workers=workers)

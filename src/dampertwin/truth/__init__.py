@@ -1,0 +1,56 @@
+"""The virtual laboratory's reference damper ("truth"), written from other,
+higher-fidelity physics than the model under calibration (issue 32,
+DESIGN.md 9).
+
+The twin (``dampertwin.model``) describes the triple-tube semi-active damper
+with the thesis' chapter-4 equations. A real damper is not made of those
+equations, so the lab measures this package instead:
+
+- shim stacks from annular-plate bending (plate.py, shims.py), intake valves
+  on coil springs with a seat of finite width (intake.py);
+- a pilot-operated solenoid valve with its coil, current driver, pilot
+  poppet and main stage (solenoid.py): its P/Q map emerges;
+- oil with a Murnaghan equation of state, Walther viscosity and thermal
+  expansion, entrained gas dissolving at a finite rate (Henry's law), tube
+  walls from Lame's thick-cylinder formula (fluid.py, chambers.py);
+- a reserve gas with heat exchange and dissolution (gas.py);
+- a generalised Maxwell-slip rod seal (seal.py), a generalised Maxwell
+  rubber top mount with the Payne effect (mount.py), the test fixture's
+  resonance (fixture.py); parts as built (params.py).
+
+It may import the generic solver, the sensors, the excitations and the
+design loader (nominal values), never ``dampertwin.model`` (a test walks
+the imports; another compares function bodies).
+"""
+
+TRUTH_VERSION = "dampertwin-truth 1"
+
+
+def _refresh_compiled_cache() -> None:
+    """Numba's on-disk cache of a compiled function is keyed by its own
+    file's time stamp, not by the files of the functions it calls (the
+    assembled right-hand sides call every submodel): after an edit of a
+    submodel the assembly would run stale machine code. A hash of all the
+    truth's sources, kept beside the cache, drops the cache when any
+    source changed."""
+    import hashlib
+    from pathlib import Path
+
+    here = Path(__file__).parent
+    h = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(here.glob("*.py")))).hexdigest()
+    cache = here / "__pycache__"
+    stamp = cache / "truth-sources.sha256"
+    try:
+        if stamp.is_file() and stamp.read_text() == h:
+            return
+        for f in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
+            f.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        tmp = cache / f"truth-sources.{id(h)}.tmp"
+        tmp.write_text(h)
+        tmp.replace(stamp)
+    except OSError:  # a read-only install keeps its cache
+        pass
+
+
+_refresh_compiled_cache()

@@ -1,0 +1,273 @@
+"""Assembled right-hand sides of the truth (solver.rhs_signature):
+``valve`` (flow bench), ``damper`` (rod on the fixture's crosshead, tube
+driven), ``module`` (rod on the top mount, the mount on the crosshead) and
+``topmount`` (the mount alone on the crosshead).
+
+Sign conventions of the project (DESIGN.md 4): the stroke s grows in
+rebound (the rebound chamber shrinks), the rod force is positive in
+tension, the rod acceleration is reported positive up.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from ..solver import rhs_signature
+from . import chambers as ch
+from . import fixture as fx
+from . import gas as gs
+from . import intake as ik
+from . import mount as mt
+from . import shims as sh
+from . import solenoid as sv
+from .fluid import BETA_T, JIT, P_ATM, P_REF, RHO0, density, viscosity
+from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, EX_T0, O_A_ROD, O_DISS, O_DP, O_F_ACT,
+                     O_F_MU, O_F_ROD, O_F_TM, O_I, O_LIFT, O_MAG, O_MASS, O_P_B, O_P_C, O_P_K, O_P_R, O_P_RES, O_Q_A,
+                     O_Q_BP, O_Q_BV, O_Q_IN, O_Q_P, O_S, O_T_GAS, O_T_OIL, O_U, O_V, O_X_BC, O_X_BI, O_X_M, O_X_P,
+                     O_X_PI, O_X_PR, PO, SO, TO)
+from .seal import seal
+
+SIG = rhs_signature()
+OIL, CH, GAS = PO["oil"], PO["chambers"], PO["gas"]
+PR, BC, PI, BI, AV = (PO["piston_rebound"], PO["base_compression"], PO["piston_intake"], PO["base_intake"],
+                      PO["active_valve"])
+SEAL, MOUNT, FIX, RUN = PO["seal"], PO["mount"], PO["fixture"], PO["run"]
+S_CH, S_GAS, S_PR, S_BC, S_PI, S_BI, S_AV, S_SEAL, S_FIX, S_ROD, S_MOUNT = (
+    SO["chambers"], SO["gas"], SO["piston_rebound"], SO["base_compression"], SO["piston_intake"],
+    SO["base_intake"], SO["active_valve"], SO["seal"], SO["fixture"], SO["rod"], SO["mount"])
+T_MOUNT, T_FIX = TO["mount"], TO["fixture"]
+
+
+@njit(**JIT)
+def prescribed(t, p, ex):
+    """Prescribed input and its rate at t: between two samples the cubic
+    Bezier curve through the sample values with the sampled rates as end
+    tangents (control points u0 + r0 h/3, u1 - r1 h/3), evaluated by de
+    Casteljau's construction: smooth (C1), so the integrator need not stop
+    at every sample. Before the record: the first value at rest."""
+    h = p[RUN + EX_DT]
+    r = (t - p[RUN + EX_T0]) / h
+    n = ex.shape[1]
+    if r <= 0.0:
+        return ex[0, 0], 0.0
+    if r >= n - 1:
+        return ex[0, n - 1], ex[1, n - 1] if r <= n - 1 + 1e-9 else 0.0
+    k = int(r)
+    f = r - k
+    b0 = ex[0, k]
+    b3 = ex[0, k + 1]
+    b1 = b0 + ex[1, k] * h / 3.0
+    b2 = b3 - ex[1, k + 1] * h / 3.0
+    c0 = b0 + f * (b1 - b0)
+    c1 = b1 + f * (b2 - b1)
+    c2 = b2 + f * (b3 - b2)
+    d0 = c0 + f * (c1 - c0)
+    d1 = c1 + f * (c2 - c1)
+    return d0 + f * (d1 - d0), 3.0 * (d1 - d0) / h
+
+
+@njit(**JIT)
+def _mean(a, b):
+    return 0.5 * (a + b)
+
+
+@njit(**JIT)
+def _damper(t, y, p, ex, dy, out, module):
+    for k in range(out.shape[0]):
+        out[k] = 0.0
+    u, du = prescribed(t, p, ex)
+    if module:
+        x_top, v_top = y[S_ROD], y[S_ROD + 1]
+    else:
+        x_top, v_top = y[S_FIX + fx.XF], y[S_FIX + fx.VF]
+    s = u - x_top
+    sd = du - v_top
+    T = y[S_CH + ch.T_OIL]
+    P_r, P_c, P_b = y[S_CH + ch.PR], y[S_CH + ch.PC], y[S_CH + ch.PB]
+    mu = viscosity(T, p, OIL) * p[OIL + RHO0]
+    # reserve
+    rho_ref = density(p[OIL + P_REF], T, p, OIL)
+    V_oil = y[S_GAS + gs.M_RES] / rho_ref
+    A_mk = p[AV + sv.A_K] - p[AV + sv.A_M]
+    x_bc, x_bi, x_m = y[S_BC + sh.X], y[S_BI + ik.X], y[S_AV + sv.XM]
+    v_bc, v_bi, v_m = y[S_BC + sh.V], y[S_BI + ik.V], y[S_AV + sv.VM]
+    V_sw = p[BC + sh.A_EQ] * x_bc - p[BI + ik.A_P] * x_bi - A_mk * x_m
+    dV_sw = p[BC + sh.A_EQ] * v_bc - p[BI + ik.A_P] * v_bi - A_mk * v_m
+    P_res, V_g = gs.reserve_pressure(y, S_GAS, p, GAS, V_oil, V_sw)
+    P_k = y[S_AV + sv.PK]
+    rho_r, rho_c, rho_b = density(P_r, T, p, OIL), density(P_c, T, p, OIL), density(P_b, T, p, OIL)
+    rho_s, rho_k = density(P_res, T, p, OIL), density(P_k, T, p, OIL)
+    # valves and passages
+    Q0, Qb0, A0, L0 = sh.shim_valve(y, S_PR, p, PR, P_r, P_c, _mean(rho_r, rho_c), mu, dy)
+    Q1, A1, L1 = ik.intake_valve(y, S_PI, p, PI, P_c, P_r, _mean(rho_r, rho_c), mu, dy)
+    Q2, Qb2, A2, L2 = sh.shim_valve(y, S_BC, p, BC, P_c, P_res, _mean(rho_c, rho_s), mu, dy)
+    Q3, A3, L3 = ik.intake_valve(y, S_BI, p, BI, P_res, P_c, _mean(rho_c, rho_s), mu, dy)
+    Q_lk, F_band, L_lk = ch.band_leakage(P_r - P_c, sd, mu, p, CH)
+    Q_bp = ch.bypass(P_r - P_b, mu, _mean(rho_r, rho_b), p, CH)
+    Q_a, Q_f, Q_pl, P_mag, L_av = sv.active_valve(y, S_AV, p, AV, p[RUN + CURRENT], P_b, P_res, rho_b, mu, dy)
+    F_seal, L_seal = seal(y, S_SEAL, p, SEAL, sd, P_r - p[OIL + P_ATM], dy)
+    F_d = (P_r - p[OIL + P_ATM]) * p[CH + ch.A_R] - (P_c - p[OIL + P_ATM]) * p[CH + ch.A_B] + F_seal + F_band
+    # top: fixture (damper) or rod, mount and fixture (module)
+    a_rod = 0.0
+    F_tm = 0.0
+    L_top = 0.0
+    if module:
+        F_tm, L_m = mt.mount(y, S_MOUNT, p, MOUNT, x_top - y[S_FIX + fx.XF], v_top - y[S_FIX + fx.VF], dy)
+        a_rod = (F_d - F_tm) / p[CH + ch.M_ROD]
+        dy[S_ROD] = v_top
+        dy[S_ROD + 1] = a_rod
+        F_lc, L_f = fx.fixture(y, S_FIX, p, FIX, F_tm, dy)
+        L_top = L_m + L_f
+    else:
+        F_lc, L_top = fx.fixture(y, S_FIX, p, FIX, F_d, dy)
+    # mass flows (mean density of the two ends: what leaves one chamber enters the other)
+    m_p = _mean(rho_r, rho_c) * (Q0 + Qb0 + Q_lk - Q1)
+    m_bv = _mean(rho_c, rho_s) * (Q2 + Qb2 - Q3)
+    m_bp = _mean(rho_r, rho_b) * Q_bp
+    m_a = _mean(rho_b, rho_s) * Q_a
+    m_f = _mean(rho_b, rho_k) * Q_f
+    m_pl = _mean(rho_k, rho_s) * Q_pl
+    # gas heat, oil temperature
+    dV_oil_mass = (m_bv + m_a + m_pl) / rho_ref
+    q_gas = 0.0
+    loss = (L0 + L1 + L2 + L3 + L_lk + (P_r - P_b) * Q_bp + L_av + L_seal + L_top)
+    # provisional dT: the gas heat is known only after the gas rates; its share of the oil heating is lagged
+    # by using the gas temperature difference directly
+    if p[GAS + gs.HEAT] > 0.5:
+        q_gas = p[GAS + gs.H] * (y[S_GAS + gs.T_G] - T)
+    dT = ch.oil_heating(T, loss + q_gas, p, CH)
+    dV_g = -(dV_oil_mass + p[OIL + BETA_T] * V_oil * dT + dV_sw)
+    gs.reserve(y, S_GAS, p, GAS, P_res, V_g, dV_g, V_oil, T, dy)
+    dy[S_GAS + gs.M_RES] = m_bv + m_a + m_pl
+    dy[S_CH + ch.T_OIL] = dT
+    # chambers
+    A_r, A_b = p[CH + ch.A_R], p[CH + ch.A_B]
+    v0, v1, v2, v3 = y[S_PR + sh.V], y[S_PI + ik.V], v_bc, v_bi
+    x0, x1 = y[S_PR + sh.X], y[S_PI + ik.X]
+    V_r = A_r * (p[CH + ch.L_R0] - s) + A0 * x0 - A1 * x1
+    dV_r = -A_r * sd + A0 * v0 - A1 * v1
+    V_c = A_b * (p[CH + ch.L_C0] + s) - A0 * x0 + A1 * x1 + A2 * x_bc - A3 * x_bi
+    dV_c = A_b * sd - A0 * v0 + A1 * v1 + A2 * v2 - A3 * v3
+    V_b = p[CH + ch.V_B] + p[AV + sv.A_M] * x_m
+    dV_b = p[AV + sv.A_M] * v_m
+    V_k = p[AV + sv.V_K] - p[AV + sv.A_K] * x_m
+    dV_k = -p[AV + sv.A_K] * v_m
+    kp, kt = p[CH + ch.KAPPA_PT], p[CH + ch.KAPPA_TT]
+    g_r, g_c, g_b = y[S_CH + ch.GR], y[S_CH + ch.GC], y[S_CH + ch.GB]
+    P_ref = p[OIL + P_REF]
+    dg_r = gs.free_gas_rate(g_r, P_r, ch.liquid_volume(P_r, V_r, kp, g_r, p, OIL), P_ref, p, GAS)
+    dg_c = gs.free_gas_rate(g_c, P_c, ch.liquid_volume(P_c, V_c, kp, g_c, p, OIL), P_ref, p, GAS)
+    dg_b = gs.free_gas_rate(g_b, P_b, ch.liquid_volume(P_b, V_b, kt, g_b, p, OIL), P_ref, p, GAS)
+    dy[S_CH + ch.GR], dy[S_CH + ch.GC], dy[S_CH + ch.GB] = dg_r, dg_c, dg_b
+    dy[S_CH + ch.PR] = ch.pressure_rate(P_r, T, dT, V_r, dV_r, kp, g_r, dg_r, -m_p - m_bp, p, OIL)
+    dy[S_CH + ch.PC] = ch.pressure_rate(P_c, T, dT, V_c, dV_c, kp, g_c, dg_c, m_p - m_bv, p, OIL)
+    dy[S_CH + ch.PB] = ch.pressure_rate(P_b, T, dT, V_b, dV_b, kt, g_b, dg_b, m_bp - m_a - m_f, p, OIL)
+    dy[S_AV + sv.PK] = ch.pressure_rate(P_k, T, dT, V_k, dV_k, 0.0, 0.0, 0.0, m_f - m_pl, p, OIL)
+    out[O_U] = u
+    out[O_V] = du
+    out[O_S] = s
+    out[O_F_ACT] = F_d
+    out[O_F_MU] = F_seal
+    if module:
+        out[O_F_ROD] = F_d
+        out[O_F_TM] = F_lc
+        out[O_A_ROD] = -a_rod
+    else:
+        out[O_F_ROD] = F_lc
+    out[O_P_R], out[O_P_C], out[O_P_B], out[O_P_RES], out[O_P_K] = P_r, P_c, P_b, P_res, P_k
+    out[O_X_PR], out[O_X_PI], out[O_X_BC], out[O_X_BI] = x0, x1, x_bc, x_bi
+    out[O_X_M], out[O_X_P] = x_m, y[S_AV + sv.XP]
+    out[O_Q_P] = Q0 + Qb0 + Q_lk - Q1
+    out[O_Q_BV] = Q2 + Qb2 - Q3
+    out[O_Q_BP] = Q_bp
+    out[O_Q_A] = Q_a + Q_pl
+    out[O_I] = y[S_AV + sv.I]
+    out[O_T_OIL] = T
+    out[O_T_GAS] = y[S_GAS + gs.T_G]
+    out[O_MASS] = (ch.oil_mass(P_r, T, V_r, kp, g_r, p, OIL) + ch.oil_mass(P_c, T, V_c, kp, g_c, p, OIL)
+                   + ch.oil_mass(P_b, T, V_b, kt, g_b, p, OIL) + ch.oil_mass(P_k, T, V_k, 0.0, 0.0, p, OIL)
+                   + y[S_GAS + gs.M_RES])
+    out[O_DISS] = loss + q_gas
+    out[O_MAG] = P_mag
+
+
+@njit(SIG, **JIT)
+def rhs_damper(t, y, p, ex, aux, dy, out):
+    """Damper test: tube displacement prescribed, rod on the crosshead."""
+    _damper(t, y, p, ex, dy, out, False)
+
+
+@njit(SIG, **JIT)
+def rhs_module(t, y, p, ex, aux, dy, out):
+    """Module test: the rod on the top mount, the mount on the crosshead."""
+    _damper(t, y, p, ex, dy, out, True)
+
+
+@njit(SIG, **JIT)
+def rhs_topmount(t, y, p, ex, aux, dy, out):
+    """Top-mount bench: deflection prescribed at the base, mount on the crosshead."""
+    for k in range(out.shape[0]):
+        out[k] = 0.0
+    X, Xd = prescribed(t, p, ex)
+    F_tm, L_m = mt.mount(y, T_MOUNT, p, MOUNT, X - y[T_FIX + fx.XF], Xd - y[T_FIX + fx.VF], dy)
+    F_lc, L_f = fx.fixture(y, T_FIX, p, FIX, F_tm, dy)
+    out[O_U] = X
+    out[O_V] = Xd
+    out[O_F_TM] = F_lc
+    out[O_DISS] = L_m + L_f
+
+
+@njit(SIG, **JIT)
+def rhs_valve(t, y, p, ex, aux, dy, out):
+    """Flow bench: a prescribed flow into an upstream volume of degassed oil,
+    one passive valve to a constant back pressure."""
+    for k in range(out.shape[0]):
+        out[k] = 0.0
+    Q_in, dQ = prescribed(t, p, ex)
+    P_up = y[0]
+    T = p[CH + ch.T_AMB]
+    o = int(p[RUN + BENCH_BLOCK])
+    P_dn = p[RUN + BENCH_P]
+    rho = density(P_up, T, p, OIL)
+    mu = viscosity(T, p, OIL) * p[OIL + RHO0]
+    if p[RUN + BENCH_KIND] < 0.5:
+        Q, Qb, A, L = sh.shim_valve(y, 1, p, o, P_up, P_dn, rho, mu, dy)
+        Q = Q + Qb
+    else:
+        Q, A, L = ik.intake_valve(y, 1, p, o, P_up, P_dn, rho, mu, dy)
+        dy[3] = 0.0
+    V = p[RUN + BENCH_V] + A * y[1]
+    dy[0] = ch.pressure_rate(P_up, T, 0.0, V, A * y[2], 0.0, 0.0, 0.0, rho * (Q_in - Q), p, OIL)
+    out[O_Q_IN] = Q_in
+    out[O_DP] = P_up - P_dn
+    out[O_LIFT] = y[1]
+    out[O_P_R] = P_up
+    out[O_Q_P] = Q
+    out[O_DISS] = L
+
+
+@njit(SIG, **JIT)
+def rhs_active_valve(t, y, p, ex, aux, dy, out):
+    """The active valve alone on a pressure bench: prescribed pressure drop
+    (ex) over it, outlet at the bench's back pressure, degassed oil."""
+    for k in range(out.shape[0]):
+        out[k] = 0.0
+    dp, _ = prescribed(t, p, ex)
+    P_out = p[RUN + BENCH_P]
+    P_in = P_out + dp
+    T = p[CH + ch.T_AMB]
+    rho = density(P_in, T, p, OIL)
+    mu = viscosity(T, p, OIL) * p[OIL + RHO0]
+    Q_a, Q_f, Q_pl, P_mag, L_av = sv.active_valve(y, 0, p, AV, p[RUN + CURRENT], P_in, P_out, rho, mu, dy)
+    P_k = y[sv.PK]
+    rho_k = density(P_k, T, p, OIL)
+    dy[sv.PK] = ch.pressure_rate(P_k, T, 0.0, p[AV + sv.V_K] - p[AV + sv.A_K] * y[sv.XM], -p[AV + sv.A_K] * y[sv.VM],
+                                 0.0, 0.0, 0.0, _mean(rho, rho_k) * Q_f - _mean(rho_k, rho) * Q_pl, p, OIL)
+    out[O_DP] = dp
+    out[O_Q_IN] = Q_a + Q_pl
+    out[O_P_K] = P_k
+    out[O_X_M] = y[sv.XM]
+
+
+RHS = {"valve": rhs_valve, "damper": rhs_damper, "module": rhs_module, "topmount": rhs_topmount,
+       "active_valve": rhs_active_valve}

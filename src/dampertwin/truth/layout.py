@@ -1,0 +1,71 @@
+"""Vectors of the truth: parameter blocks and state blocks per
+configuration, assembled from the submodels' declarations (PARAMS, STATES
+beside their equations). Offsets are plain ints, compile-time constants
+inside the compiled right-hand sides."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import chambers, fixture, fluid, gas, intake, mount, seal, shims, solenoid
+
+RUN_PARAMS = ("CURRENT", "EX_T0", "EX_DT", "BENCH_V", "BENCH_P", "BENCH_BLOCK", "BENCH_KIND")
+CURRENT, EX_T0, EX_DT, BENCH_V, BENCH_P, BENCH_BLOCK, BENCH_KIND = range(len(RUN_PARAMS))
+PARAM_BLOCKS = (("oil", fluid.PARAMS), ("chambers", chambers.PARAMS), ("gas", gas.PARAMS),
+                ("piston_rebound", shims.PARAMS), ("base_compression", shims.PARAMS),
+                ("piston_intake", intake.PARAMS), ("base_intake", intake.PARAMS), ("active_valve", solenoid.PARAMS),
+                ("seal", seal.PARAMS), ("mount", mount.PARAMS), ("fixture", fixture.PARAMS), ("run", RUN_PARAMS))
+
+
+def _offsets(blocks):
+    off, i = {}, 0
+    for name, items in blocks:
+        off[name] = i
+        i += len(items)
+    return off, i
+
+
+PO, N_PARAMS = _offsets(PARAM_BLOCKS)
+PARAM_NAMES = tuple(f"{b}.{n}" for b, items in PARAM_BLOCKS for n in items)
+
+ROD_STATES = (("x_rod", "m", 1e-4, "rod displacement"), ("v_rod", "m/s", 0.1, "rod velocity"))
+BENCH_STATES = (("P_up", "Pa", 1e5, "flow bench upstream pressure"), *shims.STATES)
+DAMPER_BLOCKS = (("chambers", chambers.STATES), ("gas", gas.STATES), ("piston_rebound", shims.STATES),
+                 ("base_compression", shims.STATES), ("piston_intake", intake.STATES),
+                 ("base_intake", intake.STATES), ("active_valve", solenoid.STATES), ("seal", seal.STATES),
+                 ("fixture", fixture.STATES))
+MODULE_BLOCKS = DAMPER_BLOCKS + (("rod", ROD_STATES), ("mount", mount.STATES))
+TOPMOUNT_BLOCKS = (("mount", mount.STATES), ("fixture", fixture.STATES))
+VALVE_BLOCKS = (("bench", BENCH_STATES),)
+ACTIVE_BLOCKS = (("active_valve", solenoid.STATES),)
+CONFIG_BLOCKS = {"valve": VALVE_BLOCKS, "damper": DAMPER_BLOCKS, "module": MODULE_BLOCKS,
+                 "topmount": TOPMOUNT_BLOCKS, "active_valve": ACTIVE_BLOCKS}
+SO, N_MODULE = _offsets(MODULE_BLOCKS)   # module offsets; the damper's are its first blocks
+TO, N_TOPMOUNT = _offsets(TOPMOUNT_BLOCKS)
+N_DAMPER = _offsets(DAMPER_BLOCKS)[1]
+
+
+def states(configuration: str) -> tuple:
+    return tuple(s for _, sts in CONFIG_BLOCKS[configuration] for s in sts)
+
+
+def state_names(configuration: str) -> tuple[str, ...]:
+    return tuple(f"{b}.{s[0]}" for b, sts in CONFIG_BLOCKS[configuration] for s in sts)
+
+
+def scales(configuration: str) -> np.ndarray:
+    return np.array([s[2] for s in states(configuration)], float)
+
+
+OUTPUTS = ("displacement [m]", "velocity [m/s]", "stroke [m]", "rod force [N]", "top mount force [N]",
+           "actuator force [N]", "rod acceleration [m/s^2]", "friction force [N]", "p rebound [Pa]",
+           "p compression [Pa]", "p third tube [Pa]", "p reserve [Pa]", "p control [Pa]",
+           "lift piston_rebound [m]", "lift piston_intake [m]", "lift base_compression [m]", "lift base_intake [m]",
+           "lift main stage [m]", "lift pilot [m]", "flow piston [m^3/s]", "flow base [m^3/s]",
+           "flow bypass [m^3/s]", "flow active valve [m^3/s]", "coil current [A]", "oil temperature [K]",
+           "gas temperature [K]", "oil mass [kg]", "dissipated power [W]", "magnetic power [W]",
+           "flow [m^3/s]", "dp [Pa]", "lift [m]")
+(O_U, O_V, O_S, O_F_ROD, O_F_TM, O_F_ACT, O_A_ROD, O_F_MU, O_P_R, O_P_C, O_P_B, O_P_RES, O_P_K, O_X_PR, O_X_PI,
+ O_X_BC, O_X_BI, O_X_M, O_X_P, O_Q_P, O_Q_BV, O_Q_BP, O_Q_A, O_I, O_T_OIL, O_T_GAS, O_MASS, O_DISS, O_MAG, O_Q_IN,
+ O_DP, O_LIFT) = range(len(OUTPUTS))
+N_OUT = len(OUTPUTS)
