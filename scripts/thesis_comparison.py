@@ -331,7 +331,19 @@ def build(pub: dict, frames) -> dict:
     res["fig_6_20_delays"] = event_delays(pub, frames)
     res["parameters"] = parameter_values(pub)
     res["thesis_arithmetic"] = check_thesis_arithmetic(pub)
+    res["provenance"] = provenance()
     return res
+
+
+def provenance() -> dict:
+    """Package version and the hashes of the nominal design and the transcription."""
+    import hashlib
+
+    from dampertwin import __version__
+    from dampertwin.design import load
+
+    return {"dampertwin": __version__, "baseline_design_hash": load(ROOT / "conf" / "design" / "baseline.yaml").hash(),
+            "published_yaml_sha256": hashlib.sha256(PUBLISHED.read_bytes()).hexdigest()}
 
 
 def main() -> int:

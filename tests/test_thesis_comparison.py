@@ -100,7 +100,7 @@ def test_thesis_arithmetic_finds_the_one_sign_inconsistency():
     assert bad == [("6.5", 3, "compression")]
 
 
-def test_event_delay_helpers():
+def test_event_delay_functions():
     import numpy as np
 
     t = np.linspace(0.0, 1.0, 1001)
