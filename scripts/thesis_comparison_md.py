@@ -168,6 +168,11 @@ def _arithmetic(res: dict, pub: dict) -> list[str]:
            "compression peak is larger in magnitude, table 7.1 prints a negative % where it is *smaller*;",
            "- tables 6.6 and 7.2: |s - m| dB (never signed, although the header says Diff.);",
            "- table 6.6's 300 Hz columns are headed [g]; the values are dB.\n",
+           "Other printing issues met while transcribing: table 6.3's caption repeats table 6.2's ('valves "
+           "parameters identification') although it lists the compliance fit's settings; table 6.1 gives the "
+           "stiffness coefficients and the Coulomb friction as '[-]' although eq. 4.19 / 4.26 need N and 1/mm "
+           "(THESIS-ERRATA 18, 22); section 6.5 says 5 mm amplitude, figs. 6.20-6.22 '10mm of stroke' "
+           "(THESIS-ERRATA 36).\n",
            f"{len(res['thesis_arithmetic']) - len(bad)} of {len(res['thesis_arithmetic'])} printed Diff. cells "
            "fit their table's rule within rounding."]
     if bad:
