@@ -44,7 +44,7 @@ def lab(request, tmp_path_factory):
     shutil.copy(ROOT / "conf" / "lab" / "lab2" / request.param, tmp / "conf" / "lab" / "lab2" / "sample.yaml")
     seed = int(yaml_load((ROOT / "conf" / "config.yaml").read_text())["seed"])
     generate(tmp / "conf", tmp / "measured", seed, only=[*(("flowbench", v) for v in VALVES), ("topmount", "baseline"), ("compliance", "baseline")],
-             progress=False)
+             progress=False, sample=tmp / "conf" / "lab" / "lab2" / "sample.yaml")  # the lab-2 sample: a truth with model counterparts
     return request.param, tmp / "measured"
 
 
