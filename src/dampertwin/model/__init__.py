@@ -30,3 +30,8 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
     import numba
 
     numba.config.CACHE_DIR = _cache_dir()
+
+# Load the submodels in layout's declared order: a direct first import of one of
+# them (e.g. `import dampertwin.model.params`, as the docs hook does) would
+# otherwise meet the chambers -> layout -> bench cycle half-initialised.
+from . import layout as _layout  # noqa: E402,F401
