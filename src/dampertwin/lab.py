@@ -161,6 +161,12 @@ def load_sample(path: str | Path) -> dict:
     for k, v in doc["effects"].items():
         if not isinstance(v, bool):
             bad.append(f"effects.{k}: {v!r}; expected true or false")
+    return _finish_sample(path, doc, bad)
+
+
+def _finish_sample(path: Path, doc: dict, bad: list[str]) -> dict:
+    """Both generations: the benches checked, every problem raised at once
+    naming the file, then the sample's path and content hash recorded."""
     bad += _check_benches(doc["benches"])
     if bad:
         raise LabError(f"{path}: " + "; ".join(bad))
@@ -200,13 +206,7 @@ def _load_sample3(path: Path, doc: dict) -> dict:
                 if not isinstance(v, bool)]
     if not isinstance(doc.get("seed_offset", 0), int) or isinstance(doc.get("seed_offset", 0), bool):
         bad.append(f"seed_offset: {doc['seed_offset']!r}; expected an integer")
-    bad += _check_benches(doc["benches"])
-    if bad:
-        raise LabError(f"{path}: " + "; ".join(bad))
-    doc.setdefault("seed_offset", 0)
-    doc["_path"] = str(path)
-    doc["_hash"] = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-    return doc
+    return _finish_sample(path, doc, bad)
 
 
 def is_truth_sample(sample: dict) -> bool:
