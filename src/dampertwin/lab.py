@@ -135,15 +135,7 @@ def load_sample(path: str | Path) -> dict:
         raise LabError(f"{path}: expected a mapping with the keys {', '.join(REQUIRED_KEYS)}")
     if doc.get("generator") == LAB3_VERSION:
         return _load_sample3(path, doc)
-    bad = []
-    for k in doc:
-        if k not in REQUIRED_KEYS + OPTIONAL_KEYS:
-            bad.append(f"{k}: unknown key; expected {', '.join(REQUIRED_KEYS + OPTIONAL_KEYS)}")
-    for k in REQUIRED_KEYS:
-        if k not in doc:
-            bad.append(f"{k}: missing")
-        elif not isinstance(doc[k], dict):
-            bad.append(f"{k}: expected a mapping")
+    bad = _key_problems(doc, REQUIRED_KEYS)
     if bad:
         raise LabError(f"{path}: " + "; ".join(bad))
     if doc.get("generator", LAB_VERSION) not in ("dampertwin-lab 1", LAB_VERSION):
@@ -164,6 +156,18 @@ def load_sample(path: str | Path) -> dict:
     return _finish_sample(path, doc, bad)
 
 
+def _key_problems(doc: dict, required: tuple) -> list[str]:
+    """Unknown top-level keys, and required sections missing or not mappings."""
+    known = tuple(required) + tuple(OPTIONAL_KEYS)
+    bad = [f"{k}: unknown key; expected {', '.join(known)}" for k in doc if k not in known]
+    for k in required:
+        if k not in doc:
+            bad.append(f"{k}: missing")
+        elif not isinstance(doc[k], dict):
+            bad.append(f"{k}: expected a mapping")
+    return bad
+
+
 def _finish_sample(path: Path, doc: dict, bad: list[str]) -> dict:
     """Both generations: the benches checked, every problem raised at once
     naming the file, then the sample's path and content hash recorded."""
@@ -180,13 +184,7 @@ def _load_sample3(path: Path, doc: dict) -> dict:
     """A lab-3 sample: the truth's values and effects, the benches."""
     from .truth.params import TruthParameterError, check_effects, check_values
 
-    bad = [f"{k}: unknown key; expected {', '.join(REQUIRED_KEYS_3 + OPTIONAL_KEYS)}"
-           for k in doc if k not in REQUIRED_KEYS_3 + OPTIONAL_KEYS]
-    for k in REQUIRED_KEYS_3:
-        if k not in doc:
-            bad.append(f"{k}: missing")
-        elif not isinstance(doc[k], dict):
-            bad.append(f"{k}: expected a mapping")
+    bad = _key_problems(doc, REQUIRED_KEYS_3)
     if bad:
         raise LabError(f"{path}: " + "; ".join(bad))
     t = doc["truth"]
