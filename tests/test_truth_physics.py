@@ -175,3 +175,175 @@ def test_fixture_resonates_and_off_means_a_rigid_frame():
     f, P = __import__("scipy.signal", fromlist=["welch"]).welch(ring, fs=20_000.0, nperseg=2048)
     f_n = math.sqrt(v["fixture.K_F"] / v["fixture.M_F"]) / (2 * math.pi)
     assert abs(f[np.argmax(P * (f > 100))] - f_n) < 0.05 * f_n
+
+
+# --- virtual work and the walls (review findings: a part's pressure area must sweep its volume; a wall between
+# two oil chambers is loaded by the pressure difference across it) ---------------------------------------------
+
+def _damper_state(**effects):
+    """(p, y, ex) of the damper at rest at 1.2 A with every valve pressed
+    2 um into its seat (no flow: the pressure forces are the areas' alone)
+    and the chambers at different pressures."""
+    from dampertwin.truth import chambers as ch
+    from dampertwin.truth import intake as ik
+    from dampertwin.truth import shims as sh
+    from dampertwin.truth import solenoid as sv
+    from dampertwin.truth.layout import CURRENT, EX_DT, EX_T0, PO, SO
+    from dampertwin.truth.run import _rest_damper
+
+    p, rest, _ = truth(**effects)
+    ex = Excitation.sine(0.01, 2.0, 0.5)
+    p[PO["run"] + CURRENT] = 1.2
+    p[PO["run"] + EX_T0], p[PO["run"] + EX_DT] = ex.t0, ex.dt
+    y = _rest_damper(p, "damper", 0.0, rest["T"], rest["P0"], rest["V_gas0"])
+    for block, x in (("piston_rebound", sh.X), ("piston_intake", ik.X), ("base_compression", sh.X),
+                     ("base_intake", ik.X)):
+        y[SO[block] + x] = -2e-6
+    y[SO["active_valve"] + sv.XM] = -2e-6
+    y[SO["active_valve"] + sv.XP] = -2e-6
+    c = SO["chambers"]
+    y[c + ch.PR], y[c + ch.PC], y[c + ch.PB] = 3.1e6, 2.2e6, 2.7e6
+    y[SO["active_valve"] + sv.PK] = 2.4e6
+    return p, y, ex.array()
+
+
+def _parts():
+    """(name, state offset of its lift, state offset of its velocity, its mass) per moving part."""
+    from dampertwin.truth import intake as ik
+    from dampertwin.truth import shims as sh
+    from dampertwin.truth import solenoid as sv
+    from dampertwin.truth.layout import PO, SO
+
+    out = [(b, SO[b] + m.X, SO[b] + m.V, PO[b] + m.M) for b, m in
+           (("piston_rebound", sh), ("piston_intake", ik), ("base_compression", sh), ("base_intake", ik))]
+    av, ao = SO["active_valve"], PO["active_valve"]
+    return out + [("main stage", av + sv.XM, av + sv.VM, ao + sv.M_M), ("pilot", av + sv.XP, av + sv.VP, ao + sv.M_P)]
+
+
+def _volumes(p, y):
+    from dampertwin.truth.damper import volumes
+
+    V = volumes(y, p, 0.0, 0.0)
+    return {"r": V[0], "c": V[2], "b": V[4], "k": V[6], "sw": V[8]}
+
+
+def test_every_pressure_loaded_area_sweeps_its_volume():
+    """Virtual work: for each moving part and each chamber, the force the
+    chamber's pressure puts on the part per Pa equals the volume the part
+    adds to that chamber per metre of lift (otherwise a stroke of the part
+    creates or destroys energy); and what a lift adds to the chambers it
+    takes from the reservoir (the oil spaces' total volume is fixed). The
+    walls are rigid here: the third tube's bulge couples the reservoir's
+    pressure to P_b (see the next test)."""
+    from dampertwin.truth import chambers as ch
+    from dampertwin.truth.damper import rhs_damper
+    from dampertwin.truth.layout import N_OUT, SO, state_names
+
+    p, y, ex = _damper_state(wall_compliance=False)
+    n = len(state_names("damper"))
+    c, av = SO["chambers"], SO["active_valve"]
+    from dampertwin.truth import solenoid as sv
+    chambers = {"r": c + ch.PR, "c": c + ch.PC, "b": c + ch.PB, "k": av + sv.PK}
+
+    def accel(yy, iv):
+        dy, out = np.zeros(n), np.zeros(N_OUT)
+        rhs_damper(0.0, yy, p, ex, np.zeros(1), dy, out)
+        return dy[iv]
+
+    checked = 0
+    for name, ix, iv, im in _parts():
+        h = 1e-7
+        yp, ym = y.copy(), y.copy()
+        yp[ix] += h
+        ym[ix] -= h
+        Vp, Vm = _volumes(p, yp), _volumes(p, ym)
+        dV = {k: (Vp[k] - Vm[k]) / (2 * h) for k in Vp}
+        assert abs(dV["r"] + dV["c"] + dV["b"] + dV["k"] - dV["sw"]) < 1e-9, name
+        for chamber, iP in chambers.items():
+            dP = 1e3
+            yp, ym = y.copy(), y.copy()
+            yp[iP] += dP
+            ym[iP] -= dP
+            area = p[im] * (accel(yp, iv) - accel(ym, iv)) / (2 * dP)
+            assert area == pytest.approx(dV[chamber], rel=1e-4, abs=1e-9), (name, chamber, area, dV[chamber])
+            checked += abs(area) > 1e-7
+    assert checked >= 8  # every part is loaded by at least one chamber
+
+
+def test_the_walls_take_from_one_chamber_what_they_give_the_next():
+    """The pressure tube's wall bends with the pressure difference across it:
+    raising the third tube's pressure squeezes the rebound chamber by the
+    Lame compliance times its bore volume, and no pressure change alters
+    the oil spaces' total volume (the steel is taken incompressible); with
+    the same pressure on both sides of every wall no chamber stretches."""
+    from dampertwin.truth import chambers as ch
+    from dampertwin.truth.layout import PO, SO
+
+    p, y, _ = _damper_state()
+    q, _, _ = _damper_state(wall_compliance=False)
+    c, co = SO["chambers"], PO["chambers"]
+    total = lambda V: V["r"] + V["c"] + V["b"] + V["k"] - V["sw"]  # noqa: E731
+    base = _volumes(p, y)
+    for i in (ch.PR, ch.PC, ch.PB):
+        yy = y.copy()
+        yy[c + i] += 1e6
+        assert abs(total(_volumes(p, yy)) - total(base)) < 1e-12
+    yy = y.copy()
+    yy[c + ch.PB] += 1e6
+    squeeze = _volumes(p, yy)["r"] - base["r"]
+    bore = p[co + ch.A_B] * p[co + ch.L_R0]
+    assert squeeze == pytest.approx(-1e6 * p[co + ch.KAPPA_PT] * bore, rel=1e-9)
+    assert squeeze < 0
+    yy = y.copy()
+    yy[c + ch.PR] = yy[c + ch.PC] = yy[c + ch.PB] = p[co + ch.P_W]  # the reservoir at its rest pressure
+    on, off = _volumes(p, yy), _volumes(q, yy)
+    for k in on:
+        assert on[k] == pytest.approx(off[k], rel=1e-12, abs=1e-15), k
+
+
+def test_the_coupled_wall_rates_solve_the_three_balances():
+    """walled_rates returns the rates that satisfy all three mass balances."""
+    from dampertwin.truth.chambers import walled_rates
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        a_r, a_c, a_b, W_r, W_c, W_t = rng.uniform(1e-14, 1e-12, 6)
+        b_r, b_c, b_b = rng.normal(0, 1e-5, 3)
+        r, c, b = walled_rates(a_r, b_r, a_c, b_c, a_b, b_b, W_r, W_c, W_t)
+        assert (a_r + W_r) * r - W_r * b == pytest.approx(b_r, rel=1e-9, abs=1e-20)
+        assert (a_c + W_c) * c - W_c * b == pytest.approx(b_c, rel=1e-9, abs=1e-20)
+        assert (a_b + W_r + W_c + W_t) * b - W_r * r - W_c * c == pytest.approx(b_b, rel=1e-9, abs=1e-20)
+
+
+@pytest.mark.parametrize("kind", ["piston_rebound", "piston_intake"])
+def test_a_wide_open_valve_feels_the_jet_not_the_whole_drop(kind):
+    """The ports (holes) lie in series before the stack (disc): when the
+    curtain is ten times wider than them, nearly the whole drop is theirs,
+    the face under the stack sits near the downstream pressure, and the
+    opening force is the jet's momentum flux (about 2 CD^2 A_port dp) plus a
+    small rest, well below the pressure-equivalent area times the whole
+    drop; counting the port head twice gives more than that product."""
+    from dampertwin.truth import intake as ik
+    from dampertwin.truth import shims as sh
+    from dampertwin.truth.layout import PO
+
+    p, _, _ = truth()
+    p = p.copy()
+    o = PO[kind]
+    m = sh if kind == "piston_rebound" else ik
+    port = p[o + sh.A_PORT] if m is sh else p[o + ik.A_HOLE]
+    radius = p[o + sh.R_S] if m is sh else p[o + ik.R_IN]
+    x = 10.0 * port / (2 * math.pi * radius)  # curtain ten times the ports' area
+    p[o + m.X_MAX] = 10.0 * x  # no lift stop in the way
+    y, dy = np.zeros(3), np.zeros(3)
+    y[m.X] = x
+    dp, rho, mu = 2e6, 850.0, 0.01
+    if m is sh:
+        area = p[o + sh.A_EQ]
+        sh.shim_valve(y, 0, p, o, dp + 1e5, 1e5, rho, mu, dy)
+        pressure_force = dy[sh.V] * p[o + sh.M] + sh.elastic_force(x, p, o)
+    else:
+        area = p[o + ik.A_P]
+        ik.intake_valve(y, 0, p, o, dp + 1e5, 1e5, rho, mu, dy)
+        pressure_force = dy[ik.V] * p[o + ik.M] + p[o + ik.F_S] + p[o + ik.K_S] * x
+    assert 0.0 < pressure_force < 0.5 * area * dp, (pressure_force, area * dp)

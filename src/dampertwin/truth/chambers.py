@@ -2,11 +2,18 @@
 compliance, oil heating, and the passages between chambers.
 
 Each chamber holds liquid oil (Murnaghan density, thermal expansion) and
-entrained gas g [m^3 at P_ref] (isothermal bubbles, V_gas = g P_ref / P);
-its walls stretch, V = V0 (1 + kappa (P - P_atm)), kappa from Lame's
-formula (fluid.lame_compliance). The pressure rate follows from the oil
-mass balance d(rho V_liq)/dt = mdot (the states are pressures; the mass
-they imply is conserved, tests/test_truth_physics.py). The passages: the
+entrained gas g [m^3 at P_ref] (isothermal bubbles, V_gas = g P_ref / P).
+The tube walls stretch with the pressure difference ACROSS them (a wall
+between two oil chambers takes from one what it gives to the other): the
+pressure tube between the rebound / compression chambers inside and the
+third tube's chamber outside, compliance W = kappa_PT A_B l per bore length
+l; the third tube between its chamber and the reservoir, W_T = kappa_TT V_B,
+loaded by P_b - P_W with the reservoir at its rest pressure P_W (the gas
+precharge: the reservoir's swings are some 1 % of the third tube's);
+kappa from Lame's formula (fluid.lame_compliance). The pressure rates follow
+from the oil mass balances d(rho V_liq)/dt = mdot, coupled through the
+walls (:func:`walled_rates`; the states are pressures, the mass they imply
+is conserved, tests/test_truth_physics.py). The passages: the
 bypass holes rebound -> third tube (laminar + turbulent), and the piston
 band's clearance with Poiseuille and Couette flow and the shear it puts on
 the piston (White, Viscous Fluid Flow, 3rd ed. 2006, 3-2). The oil's lumped
@@ -19,12 +26,12 @@ import math
 
 from numba import njit
 
-from .fluid import BETA_T, JIT, P_ATM, P_FLOOR_EPS, P_REF, P_V, density, modulus, ramp, ramp_slope
+from .fluid import BETA_T, JIT, P_FLOOR_EPS, P_REF, P_V, density, modulus, ramp, ramp_slope
 from .fluid import throttle as throttle_bp
 
-PARAMS = ("A_R", "A_B", "L_R0", "L_C0", "V_B", "KAPPA_PT", "KAPPA_TT", "C_TH", "HA", "T_AMB", "THERMAL", "D_PT",
-          "A_BP", "L_BP", "N_BP", "BAND_H", "BAND_L", "M_ROD")
-(A_R, A_B, L_R0, L_C0, V_B, KAPPA_PT, KAPPA_TT, C_TH, HA, T_AMB, THERMAL, D_PT, A_BP, L_BP, N_BP, BAND_H, BAND_L,
+PARAMS = ("A_R", "A_B", "L_R0", "L_C0", "V_B", "KAPPA_PT", "KAPPA_TT", "P_W", "C_TH", "HA", "T_AMB", "THERMAL",
+          "D_PT", "A_BP", "L_BP", "N_BP", "BAND_H", "BAND_L", "M_ROD")
+(A_R, A_B, L_R0, L_C0, V_B, KAPPA_PT, KAPPA_TT, P_W, C_TH, HA, T_AMB, THERMAL, D_PT, A_BP, L_BP, N_BP, BAND_H, BAND_L,
  M_ROD) = range(len(PARAMS))
 STATES = (("P_r", "Pa", 1e5, "rebound chamber pressure"), ("P_c", "Pa", 1e5, "compression chamber pressure"),
           ("P_b", "Pa", 1e5, "third-tube pressure"), ("g_r", "m^3", 1e-7, "entrained gas, rebound"),
@@ -39,29 +46,52 @@ def _floor(P, p, oo):
 
 
 @njit(**JIT)
-def liquid_volume(P, V0, kappa, g, p, oo):
-    """Liquid volume [m^3] of a chamber of rest volume V0 at pressure P."""
-    return V0 * (1.0 + kappa * (P - p[oo + P_ATM])) - g * p[oo + P_REF] / _floor(P, p, oo)
+def liquid_volume(P, V, g, p, oo):
+    """Liquid volume [m^3] of a chamber of volume V [m^3] at pressure P."""
+    return V - g * p[oo + P_REF] / _floor(P, p, oo)
 
 
 @njit(**JIT)
-def oil_mass(P, T, V0, kappa, g, p, oo):
+def oil_mass(P, T, V, g, p, oo):
     """Oil mass [kg] in a chamber."""
-    return density(P, T, p, oo) * liquid_volume(P, V0, kappa, g, p, oo)
+    return density(P, T, p, oo) * liquid_volume(P, V, g, p, oo)
 
 
 @njit(**JIT)
-def pressure_rate(P, T, dT, V0, dV0, kappa, g, dg, mdot, p, oo):
-    """dP/dt [Pa/s] of a chamber whose rest volume V0 changes at dV0, with
-    entrained gas g changing at dg, oil temperature T changing at dT and net
-    oil mass inflow mdot [kg/s]: the mass balance solved for dP/dt."""
+def balance(P, T, dT, V, dV, g, dg, mdot, p, oo):
+    """The chamber's mass balance d(rho V_liq)/dt = mdot written as
+    a dP/dt + (wall terms) = b: ``a`` [m^3/Pa] the compliance of its liquid
+    and free gas, ``b`` [m^3/s] the volume inflow at fixed pressure (net
+    oil mass inflow mdot [kg/s], volume growing at dV [m^3/s] with the
+    pressures held, free gas g growing at dg, oil warming at dT)."""
     Pf = _floor(P, p, oo)
     P_ref = p[oo + P_REF]
-    V_l = liquid_volume(P, V0, kappa, g, p, oo)
-    compliance = V_l / modulus(P, p, oo) + V0 * kappa + g * P_ref * ramp_slope(P - p[oo + P_V], P_FLOOR_EPS) / (Pf * Pf)
-    inflow = (mdot / density(P, T, p, oo) - dV0 * (1.0 + kappa * (P - p[oo + P_ATM])) + P_ref * dg / Pf
-              + p[oo + BETA_T] * V_l * dT)
-    return inflow / compliance
+    V_l = liquid_volume(P, V, g, p, oo)
+    a = V_l / modulus(P, p, oo) + g * P_ref * ramp_slope(P - p[oo + P_V], P_FLOOR_EPS) / (Pf * Pf)
+    b = mdot / density(P, T, p, oo) - dV + P_ref * dg / Pf + p[oo + BETA_T] * V_l * dT
+    return a, b
+
+
+@njit(**JIT)
+def pressure_rate(P, T, dT, V, dV, g, dg, mdot, p, oo):
+    """dP/dt [Pa/s] of a rigid chamber (see :func:`balance`)."""
+    a, b = balance(P, T, dT, V, dV, g, dg, mdot, p, oo)
+    return b / a
+
+
+@njit(**JIT)
+def walled_rates(a_r, b_r, a_c, b_c, a_b, b_b, W_r, W_c, W_t):
+    """(dP_r, dP_c, dP_b) [Pa/s] of the rebound and compression chambers and
+    the third tube's chamber from their balances (a, b) and the wall
+    compliances [m^3/Pa]: V_r grows by W_r (P_r - P_b), V_c by W_c (P_c -
+    P_b), V_b loses both and grows by W_t (P_b - P_W) (the reservoir at its
+    rest pressure P_W, what V_b gains the reservoir loses). The symmetric system
+    (a_r + W_r) dP_r - W_r dP_b = b_r, (a_c + W_c) dP_c - W_c dP_b = b_c,
+    (a_b + W_r + W_c + W_t) dP_b - W_r dP_r - W_c dP_c = b_b, eliminated."""
+    kr = W_r / (a_r + W_r)
+    kc = W_c / (a_c + W_c)
+    dP_b = (b_b + kr * b_r + kc * b_c) / (a_b + W_t + W_r * (1.0 - kr) + W_c * (1.0 - kc))
+    return (b_r + W_r * dP_b) / (a_r + W_r), (b_c + W_c * dP_b) / (a_c + W_c), dP_b
 
 
 @njit(**JIT)

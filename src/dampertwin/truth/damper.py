@@ -72,6 +72,54 @@ def _mean(a, b):
 
 
 @njit(**JIT)
+def reservoir_displacement(y, p):
+    """Volume [m^3] the moving parts displace into the reservoir, and its
+    rate [m^3/s]: the base compression stack and the base intake disc, the
+    active valve's main stage (its outlet annulus A_K - A_M) and pilot."""
+    A_mk = p[AV + sv.A_K] - p[AV + sv.A_M]
+    A_pl = sv.pilot_area(p, AV)
+    V = (p[BC + sh.A_EQ] * y[S_BC + sh.X] - p[BI + ik.A_P] * y[S_BI + ik.X] - A_mk * y[S_AV + sv.XM]
+         + A_pl * y[S_AV + sv.XP])
+    dV = (p[BC + sh.A_EQ] * y[S_BC + sh.V] - p[BI + ik.A_P] * y[S_BI + ik.V] - A_mk * y[S_AV + sv.VM]
+          + A_pl * y[S_AV + sv.VP])
+    return V, dV
+
+
+@njit(**JIT)
+def volumes(y, p, s, sd):
+    """Chamber volumes [m^3] at stroke s [m] with the parts' lifts and the
+    walls' stretch, and their rates [m^3/s] at stroke rate sd with the
+    pressures held: (V_r, dV_r, V_c, dV_c, V_b, dV_b, V_k, dV_k, V_sw, dV_sw,
+    W_r, W_c, W_t). Each part sweeps the area its pressures load (virtual
+    work: tests/test_truth_physics.py); the pressure tube's wall stretches
+    with P_r - P_b and P_c - P_b over the bore lengths (compliance
+    W = KAPPA_PT A_B l), the third tube's with P_b - P_W (W_t, the reservoir
+    at its rest pressure); V_sw is the volume displaced into the reservoir,
+    the third tube's bulge included."""
+    A_r, A_b = p[CH + ch.A_R], p[CH + ch.A_B]
+    A0, A1, A_m = p[PR + sh.A_EQ], p[PI + ik.A_P], p[AV + sv.A_M]
+    x0, x1, v0, v1 = y[S_PR + sh.X], y[S_PI + ik.X], y[S_PR + sh.V], y[S_PI + ik.V]
+    P_r, P_c, P_b = y[S_CH + ch.PR], y[S_CH + ch.PC], y[S_CH + ch.PB]
+    V_sw, dV_sw = reservoir_displacement(y, p)
+    kw = p[CH + ch.KAPPA_PT] * A_b
+    l_r, l_c = p[CH + ch.L_R0] - s, p[CH + ch.L_C0] + s
+    W_r, W_c, W_t = kw * l_r, kw * l_c, p[CH + ch.KAPPA_TT] * p[CH + ch.V_B]
+    stretch_r, stretch_c, bulge = W_r * (P_r - P_b), W_c * (P_c - P_b), W_t * (P_b - p[CH + ch.P_W])
+    V_r = A_r * l_r + A0 * x0 - A1 * x1 + stretch_r
+    dV_r = -A_r * sd + A0 * v0 - A1 * v1 - kw * sd * (P_r - P_b)
+    V_c = (A_b * l_c - A0 * x0 + A1 * x1 + p[BC + sh.A_EQ] * y[S_BC + sh.X] - p[BI + ik.A_P] * y[S_BI + ik.X]
+           + stretch_c)
+    dV_c = (A_b * sd - A0 * v0 + A1 * v1 + p[BC + sh.A_EQ] * y[S_BC + sh.V] - p[BI + ik.A_P] * y[S_BI + ik.V]
+            + kw * sd * (P_c - P_b))
+    V_b = p[CH + ch.V_B] + A_m * y[S_AV + sv.XM] - stretch_r - stretch_c + bulge
+    dV_b = A_m * y[S_AV + sv.VM] + kw * sd * (P_r - P_b) - kw * sd * (P_c - P_b)
+    A_pl = sv.pilot_area(p, AV)
+    V_k = p[AV + sv.V_K] - p[AV + sv.A_K] * y[S_AV + sv.XM] + A_pl * y[S_AV + sv.XP]
+    dV_k = -p[AV + sv.A_K] * y[S_AV + sv.VM] + A_pl * y[S_AV + sv.VP]
+    return V_r, dV_r, V_c, dV_c, V_b, dV_b, V_k, dV_k, V_sw + bulge, dV_sw, W_r, W_c, W_t
+
+
+@njit(**JIT)
 def _damper(t, y, p, ex, dy, out, module):
     for k in range(out.shape[0]):
         out[k] = 0.0
@@ -88,20 +136,16 @@ def _damper(t, y, p, ex, dy, out, module):
     # reserve
     rho_ref = density(p[OIL + P_REF], T, p, OIL)
     V_oil = y[S_GAS + gs.M_RES] / rho_ref
-    A_mk = p[AV + sv.A_K] - p[AV + sv.A_M]
-    x_bc, x_bi, x_m = y[S_BC + sh.X], y[S_BI + ik.X], y[S_AV + sv.XM]
-    v_bc, v_bi, v_m = y[S_BC + sh.V], y[S_BI + ik.V], y[S_AV + sv.VM]
-    V_sw = p[BC + sh.A_EQ] * x_bc - p[BI + ik.A_P] * x_bi - A_mk * x_m
-    dV_sw = p[BC + sh.A_EQ] * v_bc - p[BI + ik.A_P] * v_bi - A_mk * v_m
+    V_r, dV_r, V_c, dV_c, V_b, dV_b, V_k, dV_k, V_sw, dV_sw, W_r, W_c, W_t = volumes(y, p, s, sd)
     P_res, V_g = gs.reserve_pressure(y, S_GAS, p, GAS, V_oil, V_sw)
     P_k = y[S_AV + sv.PK]
     rho_r, rho_c, rho_b = density(P_r, T, p, OIL), density(P_c, T, p, OIL), density(P_b, T, p, OIL)
     rho_s, rho_k = density(P_res, T, p, OIL), density(P_k, T, p, OIL)
     # valves and passages
-    Q0, Qb0, A0, L0 = sh.shim_valve(y, S_PR, p, PR, P_r, P_c, _mean(rho_r, rho_c), mu, dy)
-    Q1, A1, L1 = ik.intake_valve(y, S_PI, p, PI, P_c, P_r, _mean(rho_r, rho_c), mu, dy)
-    Q2, Qb2, A2, L2 = sh.shim_valve(y, S_BC, p, BC, P_c, P_res, _mean(rho_c, rho_s), mu, dy)
-    Q3, A3, L3 = ik.intake_valve(y, S_BI, p, BI, P_res, P_c, _mean(rho_c, rho_s), mu, dy)
+    Q0, Qb0, _, L0 = sh.shim_valve(y, S_PR, p, PR, P_r, P_c, _mean(rho_r, rho_c), mu, dy)
+    Q1, _, L1 = ik.intake_valve(y, S_PI, p, PI, P_c, P_r, _mean(rho_r, rho_c), mu, dy)
+    Q2, Qb2, _, L2 = sh.shim_valve(y, S_BC, p, BC, P_c, P_res, _mean(rho_c, rho_s), mu, dy)
+    Q3, _, L3 = ik.intake_valve(y, S_BI, p, BI, P_res, P_c, _mean(rho_c, rho_s), mu, dy)
     Q_lk, F_band, L_lk = ch.band_leakage(P_r - P_c, sd, mu, p, CH)
     Q_bp = ch.bypass(P_r - P_b, mu, _mean(rho_r, rho_b), p, CH)
     Q_a, Q_f, Q_pl, P_mag, L_av = sv.active_valve(y, S_AV, p, AV, p[RUN + CURRENT], P_b, P_res, rho_b, mu, dy)
@@ -127,42 +171,31 @@ def _damper(t, y, p, ex, dy, out, module):
     m_a = _mean(rho_b, rho_s) * Q_a
     m_f = _mean(rho_b, rho_k) * Q_f
     m_pl = _mean(rho_k, rho_s) * Q_pl
-    # gas heat, oil temperature
-    dV_oil_mass = (m_bv + m_a + m_pl) / rho_ref
-    q_gas = 0.0
+    # oil temperature (the gas heat enters with the gas temperature difference of the state)
     loss = (L0 + L1 + L2 + L3 + L_lk + (P_r - P_b) * Q_bp + L_av + L_seal + L_top)
-    # provisional dT: the gas heat is known only after the gas rates; its share of the oil heating is lagged
-    # by using the gas temperature difference directly
+    q_gas = 0.0
     if p[GAS + gs.HEAT] > 0.5:
         q_gas = p[GAS + gs.H] * (y[S_GAS + gs.T_G] - T)
     dT = ch.oil_heating(T, loss + q_gas, p, CH)
-    dV_g = -(dV_oil_mass + p[OIL + BETA_T] * V_oil * dT + dV_sw)
+    # chambers: free gas, then the mass balances coupled through the walls
+    g_r, g_c, g_b = y[S_CH + ch.GR], y[S_CH + ch.GC], y[S_CH + ch.GB]
+    P_ref = p[OIL + P_REF]
+    dg_r = gs.free_gas_rate(g_r, P_r, ch.liquid_volume(P_r, V_r, g_r, p, OIL), P_ref, p, GAS)
+    dg_c = gs.free_gas_rate(g_c, P_c, ch.liquid_volume(P_c, V_c, g_c, p, OIL), P_ref, p, GAS)
+    dg_b = gs.free_gas_rate(g_b, P_b, ch.liquid_volume(P_b, V_b, g_b, p, OIL), P_ref, p, GAS)
+    dy[S_CH + ch.GR], dy[S_CH + ch.GC], dy[S_CH + ch.GB] = dg_r, dg_c, dg_b
+    a_r, b_r = ch.balance(P_r, T, dT, V_r, dV_r, g_r, dg_r, -m_p - m_bp, p, OIL)
+    a_c, b_c = ch.balance(P_c, T, dT, V_c, dV_c, g_c, dg_c, m_p - m_bv, p, OIL)
+    a_b, b_b = ch.balance(P_b, T, dT, V_b, dV_b, g_b, dg_b, m_bp - m_a - m_f, p, OIL)
+    dP_r, dP_c, dP_b = ch.walled_rates(a_r, b_r, a_c, b_c, a_b, b_b, W_r, W_c, W_t)
+    dy[S_CH + ch.PR], dy[S_CH + ch.PC], dy[S_CH + ch.PB] = dP_r, dP_c, dP_b
+    dy[S_AV + sv.PK] = ch.pressure_rate(P_k, T, dT, V_k, dV_k, 0.0, 0.0, m_f - m_pl, p, OIL)
+    # reserve: oil in, parts and the third tube's wall displacing, oil expanding
+    dV_oil_mass = (m_bv + m_a + m_pl) / rho_ref
+    dV_g = -(dV_oil_mass + p[OIL + BETA_T] * V_oil * dT + dV_sw + W_t * dP_b)
     gs.reserve(y, S_GAS, p, GAS, P_res, V_g, dV_g, V_oil, T, dy)
     dy[S_GAS + gs.M_RES] = m_bv + m_a + m_pl
     dy[S_CH + ch.T_OIL] = dT
-    # chambers
-    A_r, A_b = p[CH + ch.A_R], p[CH + ch.A_B]
-    v0, v1, v2, v3 = y[S_PR + sh.V], y[S_PI + ik.V], v_bc, v_bi
-    x0, x1 = y[S_PR + sh.X], y[S_PI + ik.X]
-    V_r = A_r * (p[CH + ch.L_R0] - s) + A0 * x0 - A1 * x1
-    dV_r = -A_r * sd + A0 * v0 - A1 * v1
-    V_c = A_b * (p[CH + ch.L_C0] + s) - A0 * x0 + A1 * x1 + A2 * x_bc - A3 * x_bi
-    dV_c = A_b * sd - A0 * v0 + A1 * v1 + A2 * v2 - A3 * v3
-    V_b = p[CH + ch.V_B] + p[AV + sv.A_M] * x_m
-    dV_b = p[AV + sv.A_M] * v_m
-    V_k = p[AV + sv.V_K] - p[AV + sv.A_K] * x_m
-    dV_k = -p[AV + sv.A_K] * v_m
-    kp, kt = p[CH + ch.KAPPA_PT], p[CH + ch.KAPPA_TT]
-    g_r, g_c, g_b = y[S_CH + ch.GR], y[S_CH + ch.GC], y[S_CH + ch.GB]
-    P_ref = p[OIL + P_REF]
-    dg_r = gs.free_gas_rate(g_r, P_r, ch.liquid_volume(P_r, V_r, kp, g_r, p, OIL), P_ref, p, GAS)
-    dg_c = gs.free_gas_rate(g_c, P_c, ch.liquid_volume(P_c, V_c, kp, g_c, p, OIL), P_ref, p, GAS)
-    dg_b = gs.free_gas_rate(g_b, P_b, ch.liquid_volume(P_b, V_b, kt, g_b, p, OIL), P_ref, p, GAS)
-    dy[S_CH + ch.GR], dy[S_CH + ch.GC], dy[S_CH + ch.GB] = dg_r, dg_c, dg_b
-    dy[S_CH + ch.PR] = ch.pressure_rate(P_r, T, dT, V_r, dV_r, kp, g_r, dg_r, -m_p - m_bp, p, OIL)
-    dy[S_CH + ch.PC] = ch.pressure_rate(P_c, T, dT, V_c, dV_c, kp, g_c, dg_c, m_p - m_bv, p, OIL)
-    dy[S_CH + ch.PB] = ch.pressure_rate(P_b, T, dT, V_b, dV_b, kt, g_b, dg_b, m_bp - m_a - m_f, p, OIL)
-    dy[S_AV + sv.PK] = ch.pressure_rate(P_k, T, dT, V_k, dV_k, 0.0, 0.0, 0.0, m_f - m_pl, p, OIL)
     out[O_U] = u
     out[O_V] = du
     out[O_S] = s
@@ -175,8 +208,9 @@ def _damper(t, y, p, ex, dy, out, module):
     else:
         out[O_F_ROD] = F_lc
     out[O_P_R], out[O_P_C], out[O_P_B], out[O_P_RES], out[O_P_K] = P_r, P_c, P_b, P_res, P_k
-    out[O_X_PR], out[O_X_PI], out[O_X_BC], out[O_X_BI] = x0, x1, x_bc, x_bi
-    out[O_X_M], out[O_X_P] = x_m, y[S_AV + sv.XP]
+    out[O_X_PR], out[O_X_PI] = y[S_PR + sh.X], y[S_PI + ik.X]
+    out[O_X_BC], out[O_X_BI] = y[S_BC + sh.X], y[S_BI + ik.X]
+    out[O_X_M], out[O_X_P] = y[S_AV + sv.XM], y[S_AV + sv.XP]
     out[O_Q_P] = Q0 + Qb0 + Q_lk - Q1
     out[O_Q_BV] = Q2 + Qb2 - Q3
     out[O_Q_BP] = Q_bp
@@ -184,8 +218,8 @@ def _damper(t, y, p, ex, dy, out, module):
     out[O_I] = y[S_AV + sv.I]
     out[O_T_OIL] = T
     out[O_T_GAS] = y[S_GAS + gs.T_G]
-    out[O_MASS] = (ch.oil_mass(P_r, T, V_r, kp, g_r, p, OIL) + ch.oil_mass(P_c, T, V_c, kp, g_c, p, OIL)
-                   + ch.oil_mass(P_b, T, V_b, kt, g_b, p, OIL) + ch.oil_mass(P_k, T, V_k, 0.0, 0.0, p, OIL)
+    out[O_MASS] = (ch.oil_mass(P_r, T, V_r, g_r, p, OIL) + ch.oil_mass(P_c, T, V_c, g_c, p, OIL)
+                   + ch.oil_mass(P_b, T, V_b, g_b, p, OIL) + ch.oil_mass(P_k, T, V_k, 0.0, p, OIL)
                    + y[S_GAS + gs.M_RES])
     out[O_DISS] = loss + q_gas
     out[O_MAG] = P_mag
@@ -237,7 +271,7 @@ def rhs_valve(t, y, p, ex, aux, dy, out):
         Q, A, L = ik.intake_valve(y, 1, p, o, P_up, P_dn, rho, mu, dy)
         dy[3] = 0.0
     V = p[RUN + BENCH_V] + A * y[1]
-    dy[0] = ch.pressure_rate(P_up, T, 0.0, V, A * y[2], 0.0, 0.0, 0.0, rho * (Q_in - Q), p, OIL)
+    dy[0] = ch.pressure_rate(P_up, T, 0.0, V, A * y[2], 0.0, 0.0, rho * (Q_in - Q), p, OIL)
     out[O_Q_IN] = Q_in
     out[O_DP] = P_up - P_dn
     out[O_LIFT] = y[1]
@@ -261,8 +295,11 @@ def rhs_active_valve(t, y, p, ex, aux, dy, out):
     Q_a, Q_f, Q_pl, P_mag, L_av = sv.active_valve(y, 0, p, AV, p[RUN + CURRENT], P_in, P_out, rho, mu, dy)
     P_k = y[sv.PK]
     rho_k = density(P_k, T, p, OIL)
-    dy[sv.PK] = ch.pressure_rate(P_k, T, 0.0, p[AV + sv.V_K] - p[AV + sv.A_K] * y[sv.XM], -p[AV + sv.A_K] * y[sv.VM],
-                                 0.0, 0.0, 0.0, _mean(rho, rho_k) * Q_f - _mean(rho_k, rho) * Q_pl, p, OIL)
+    A_pl = sv.pilot_area(p, AV)
+    V_k = p[AV + sv.V_K] - p[AV + sv.A_K] * y[sv.XM] + A_pl * y[sv.XP]
+    dV_k = -p[AV + sv.A_K] * y[sv.VM] + A_pl * y[sv.VP]
+    dy[sv.PK] = ch.pressure_rate(P_k, T, 0.0, V_k, dV_k, 0.0, 0.0,
+                                 _mean(rho, rho_k) * Q_f - _mean(rho_k, rho) * Q_pl, p, OIL)
     out[O_DP] = dp
     out[O_Q_IN] = Q_a + Q_pl
     out[O_P_K] = P_k

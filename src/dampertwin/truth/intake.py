@@ -7,8 +7,10 @@ linear rate over the working deflection). Closed, the pressure acts on the
 inner disc and, through the leakage's logarithmic profile, on the land
 (fluid.land_area: A_P). Open, the flow passes the holes (A_HOLE) and the
 curtain 2 pi r_in h in series, with laminar radial flow over the land
-(Merritt 1967 eq. 3-41); the holes' jet pushes the disc open. Seat and
-stop: Hunt-Crossley contacts.
+(Merritt 1967 eq. 3-41). The holes lie in series before the disc: its face
+carries the pressure after their loss, P_up - rho Q|Q| / (2 (CD A_HOLE)^2),
+and their jet's momentum flux rho Q|Q| / A_HOLE pushes it open (Merritt
+1967 ch. 5). Seat and stop: Hunt-Crossley contacts.
 """
 
 from __future__ import annotations
@@ -41,7 +43,10 @@ def intake_valve(y, s, p, o, P_up, P_dn, rho, mu, dy):
     F_seat, D_seat = hunt_crossley(-x, -v, p[o + K_C], p[o + LAM_C], p[o + EPS])
     F_stop, D_stop = hunt_crossley(x - p[o + X_MAX], v, p[o + K_C], p[o + LAM_C], p[o + EPS])
     F_spring = p[o + F_S] + p[o + K_S] * x
-    force = p[o + A_P] * dp + rho * Q * abs(Q) / p[o + A_HOLE] + F_seat - F_stop - F_spring - p[o + C] * v
+    dp_holes = rho * Q * abs(Q) / (2.0 * holes * holes)  # loss of the holes in series before the face
+    F_jet = rho * Q * abs(Q) / p[o + A_HOLE]
+    force = p[o + A_P] * (dp - dp_holes) + F_jet + F_seat - F_stop - F_spring - p[o + C] * v
     dy[s + X] = v
     dy[s + V] = force / p[o + M]
-    return Q, p[o + A_P], dp * Q + p[o + C] * v * v + D_seat + D_stop
+    loss = dp * Q + (p[o + A_P] * dp_holes - F_jet) * v + p[o + C] * v * v + D_seat + D_stop
+    return Q, p[o + A_P], loss

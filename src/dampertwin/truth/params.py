@@ -173,6 +173,7 @@ def derive(v: dict, effects: dict | None = None, as_built_seed: int | None = Non
     q["chambers.KAPPA_PT"] = fluid.lame_compliance(v["pt_r_i"], v["pt_r_o"], v["E"], v["nu_p"]) if wall else 0.0
     q["chambers.KAPPA_TT"] = (fluid.lame_compliance(v["tt_r_i"], v["tt_r_o"], v["E"], v["nu_p"]) * v["tt_ratio"]
                               if wall else 0.0)
+    q["chambers.P_W"] = v["P0"]  # the reservoir's rest pressure, which loads the third tube's wall from outside
     q["chambers.T_AMB"] = v["T"]
     q["gas.V_TOT"] = v["V_gas0"] + v["reserve_oil"]
     q["gas.H"] = v["P0"] * v["V_gas0"] / (v["gas.R_S"] * v["T"]) * v["gas.C_V"] / v["tau_thermal"]

@@ -16,9 +16,13 @@ Maxwell-slip element of stiffness K_MU whose slip force is MU times the
 stack's elastic force (Coulomb friction between the sliding faces, normal
 load from bending). Flow: the curtain 2 pi a h in series with the ports,
 and laminar radial flow over the seat land of width W_S (finite seat
-width); a bleed notch in parallel. Flow force: the ports' jet momentum
-rho Q|Q| / A_PORT on the stack (Merritt 1967 ch. 5). Seat and lift stop:
-Hunt-Crossley contacts.
+width); a bleed notch in parallel. The ports lie in series before the
+stack: the face under it carries the pressure after the ports' loss,
+P_face = P_up - rho Q|Q| / (2 (CD A_PORT)^2), and the ports' jet adds its
+momentum flux rho Q|Q| / A_PORT (Merritt 1967 ch. 5), so the port head is
+not counted twice. Seat and lift stop: Hunt-Crossley contacts. Power
+balance: what the chambers lose (the flows' dp Q and the swept volume's
+(P_up - P_dn) A_EQ v) is the dissipation plus the stack's mechanical power.
 """
 
 from __future__ import annotations
@@ -72,10 +76,12 @@ def shim_valve(y, s, p, o, P_up, P_dn, rho, mu, dy):
         dz = slip_rate(v, F_mu, p[o + MU] * abs(F_el) + 1e-3, SLIP_EXPONENT)
     F_seat, D_seat = hunt_crossley(-x, -v, p[o + K_C], p[o + LAM_C], p[o + EPS])
     F_stop, D_stop = hunt_crossley(x - p[o + X_MAX], v, p[o + K_C], p[o + LAM_C], p[o + EPS])
+    dp_port = rho * Q * abs(Q) / (2.0 * port * port)  # loss of the ports in series before the face
     F_jet = rho * Q * abs(Q) / p[o + A_PORT]
-    force = p[o + A_EQ] * dp + F_jet + F_seat - F_stop - F_el - F_mu - p[o + C] * v
+    force = p[o + A_EQ] * (dp - dp_port) + F_jet + F_seat - F_stop - F_el - F_mu - p[o + C] * v
     dy[s + X] = v
     dy[s + V] = force / p[o + M]
     dy[s + Z] = dz
-    loss = dp * (Q + Qb) + p[o + C] * v * v + F_mu * (v - dz) + D_seat + D_stop
+    loss = (dp * (Q + Qb) + (p[o + A_EQ] * dp_port - F_jet) * v + p[o + C] * v * v + F_mu * (v - dz) + D_seat
+            + D_stop)
     return Q, Qb, p[o + A_EQ], loss

@@ -14,7 +14,11 @@ force 2 CdA dp cos(theta) (Merritt 1967 5.3), as is the main stage. It relieves 
 disc (mass M_M, seat diameter D_M, inlet area A_M inside the seat, control
 area A_K behind it, spring K_M with preload F_M0) that opens when the inlet
 pressure overcomes the control pressure: it follows the pilot pressure. A
-bleed A_B bypasses the stage. The valve's static P/Q map is not an input:
+bleed A_B bypasses the stage. Each pressure-loaded area sweeps its volume
+(virtual work): the main stage A_M on the inlet, A_K in the control chamber,
+A_K - A_M on the outlet; the pilot poppet's seat area pi D_PL^2 / 4 in the
+control chamber and the outlet (:func:`pilot_area`; the caller's volumes).
+The flow forces' work on the poppets is taken from the flows' dissipation. The valve's static P/Q map is not an input:
 it emerges from these parts.
 """
 
@@ -58,6 +62,14 @@ def magnetic_force(i, p, o):
 
 
 @njit(**JIT)
+def pilot_area(p, o):
+    """Pressure-loaded area of the pilot poppet on its seat [m^2]: the
+    control chamber's volume grows by it per unit pilot lift, the outlet's
+    shrinks by it."""
+    return 0.25 * math.pi * p[o + D_PL] ** 2
+
+
+@njit(**JIT)
 def _duct(mu, area, length):
     r = math.sqrt(area / math.pi)
     return 8.0 * mu * length / (math.pi * r ** 4)
@@ -87,7 +99,7 @@ def active_valve(y, s, p, o, i_cmd, P_in, P_out, rho, mu, dy):
     F_flow = 2.0 * A_p * (Pk - P_out) * p[o + COS_JET] * A_p * A_p / (A_p * A_p + (cd * math.pi * rp * rp) ** 2)
     Fs, Ds = hunt_crossley(-xp, -vp, p[o + K_C], p[o + LAM_C], p[o + EPS])
     Ft, Dt = hunt_crossley(xp - p[o + XP_MAX], vp, p[o + K_C], p[o + LAM_C], p[o + EPS])
-    f_p = ((Pk - P_out) * math.pi * rp * rp + p[o + F_P0] - p[o + K_P] * xp - F_mag - F_flow + Fs - Ft
+    f_p = ((Pk - P_out) * pilot_area(p, o) + p[o + F_P0] - p[o + K_P] * xp - F_mag - F_flow + Fs - Ft
            - p[o + C_P] * vp)
     dy[s + XP] = vp
     dy[s + VP] = f_p / p[o + M_P]
@@ -106,5 +118,5 @@ def active_valve(y, s, p, o, i_cmd, P_in, P_out, rho, mu, dy):
     dy[s + XM] = vm
     dy[s + VM] = f_m / p[o + M_M]
     loss = ((P_in - P_out) * (Q_m + Q_b) + (P_in - Pk) * Q_f + (Pk - P_out) * Q_p + p[o + C_P] * vp * vp
-            + p[o + C_M] * vm * vm + Ds + Dt + Gds + Gdt)
+            + p[o + C_M] * vm * vm + Ds + Dt + Gds + Gdt + F_flow * vp + F_flow_m * vm)
     return Q_m + Q_b, Q_f, Q_p, -F_mag * vp, loss
