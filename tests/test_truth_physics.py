@@ -347,3 +347,36 @@ def test_a_wide_open_valve_feels_the_jet_not_the_whole_drop(kind):
         ik.intake_valve(y, 0, p, o, dp + 1e5, 1e5, rho, mu, dy)
         pressure_force = dy[ik.V] * p[o + ik.M] + p[o + ik.F_S] + p[o + ik.K_S] * x
     assert 0.0 < pressure_force < 0.5 * area * dp, (pressure_force, area * dp)
+
+
+@pytest.mark.parametrize("payne", [True, False])
+def test_the_rubber_mount_is_passive_at_any_state(payne):
+    """Power balance of the top mount at random states, also while the
+    Payne factor changes: the power put in, F dX/dt, is the rate of the
+    stored energy (backbone and branches, phi K_j y_j^2 / 2) plus the
+    dissipation it reports, which is >= 0 (a stiffness that recovers as
+    the amplitude falls must not release energy)."""
+    from dampertwin.truth import mount as mt
+    from dampertwin.truth.layout import PO
+
+    p, _, _ = truth(payne=payne)
+    o = PO["mount"]
+    rng = np.random.default_rng(7)
+    K = np.array([p[o + mt.K_1 + j] for j in range(mt.N_BRANCHES)])
+    for _ in range(50):
+        y = np.zeros(len(mt.STATES))
+        y[: mt.N_BRANCHES] = rng.normal(0, 3e-4, mt.N_BRANCHES)
+        y[mt.X_MEAN] = rng.normal(0, 1e-4)
+        y[mt.MS] = rng.uniform(0, 2e-7)
+        X, Xd = rng.normal(0, 5e-4), rng.normal(0, 0.05)
+        dy = np.zeros_like(y)
+        F, loss = mt.mount(y, 0, p, o, X, Xd, dy)
+        phi, dphi = mt.payne_factor(y[mt.MS], p, o)
+        h = 1e-14
+        assert dphi == pytest.approx((mt.payne_factor(y[mt.MS] + h, p, o)[0]
+                                      - mt.payne_factor(y[mt.MS] - h, p, o)[0]) / (2 * h), rel=1e-4, abs=1e-3)
+        y_b = y[: mt.N_BRANCHES]
+        stored_rate = ((p[o + mt.K_E] * X + p[o + mt.K_E3] * X ** 3) * Xd + phi * np.sum(K * y_b * dy[: mt.N_BRANCHES])
+                       + 0.5 * dphi * dy[mt.MS] * np.sum(K * y_b ** 2))
+        assert loss >= 0.0
+        assert F * Xd == pytest.approx(stored_rate + loss, rel=1e-9, abs=1e-9 * (abs(F * Xd) + loss))

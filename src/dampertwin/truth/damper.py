@@ -176,7 +176,7 @@ def _damper(t, y, p, ex, dy, out, module):
     q_gas = 0.0
     if p[GAS + gs.HEAT] > 0.5:
         q_gas = p[GAS + gs.H] * (y[S_GAS + gs.T_G] - T)
-    dT = ch.oil_heating(T, loss + q_gas, p, CH)
+    dT = ch.oil_heating(T, loss - L_top + q_gas, p, CH)  # the rubber's and the fixture's losses heat them, not the oil
     # chambers: free gas, then the mass balances coupled through the walls
     g_r, g_c, g_b = y[S_CH + ch.GR], y[S_CH + ch.GC], y[S_CH + ch.GB]
     P_ref = p[OIL + P_REF]

@@ -8,7 +8,11 @@ rubber's (Austrell, PhD thesis, Lund 1997; Kari, Polymer Testing 20 (2001)
 a (Payne effect) by the Kraus law phi = PHI_INF + (1 - PHI_INF) / (1 +
 (a / A_C)^(2 M_K)) (Kraus, J. Appl. Polym. Sci. Appl. Polym. Symp. 39
 (1984) 75). The amplitude is tracked as sqrt(2 r), r the mean square of
-the deflection about its slow mean (time constants TAU_R, TAU_M).
+the deflection about its slow mean (time constants TAU_R, TAU_M). A branch
+stores phi K_j y_j^2 / 2; when phi changes, the branch's deflection gives
+up the share phi' / (2 phi) y_j per second, so a stiffness change neither
+creates nor destroys energy: the power in is the stored energy's rate plus
+the dashpots' f^2 / C_j >= 0 (passive; tests/test_truth_physics.py).
 """
 
 from __future__ import annotations
@@ -28,12 +32,19 @@ STATES = (*((f"y{j + 1}", "m", 1e-4, f"spring deflection of branch {j + 1}") for
 Y1, Y2, Y3, X_MEAN, MS = range(len(STATES))
 
 
+MS_EPS = 1e-12  # [m^2] floor of the mean square (1 um amplitude): phi'(r) stays finite at rest
+
+
 @njit(**JIT)
-def payne_factor(a, p, o):
-    """Kraus factor of the branches' stiffness at amplitude a [m]."""
+def payne_factor(r, p, o):
+    """Kraus factor of the branches' stiffness at mean square deflection r
+    [m^2] (amplitude sqrt(2 r)) and its derivative d phi / d r [1/m^2]."""
     if p[o + PAYNE] < 0.5:
-        return 1.0
-    return p[o + PHI_INF] + (1.0 - p[o + PHI_INF]) / (1.0 + (a / p[o + A_C]) ** (2.0 * p[o + M_K]))
+        return 1.0, 0.0
+    q = (2.0 * (abs(r) + MS_EPS) / p[o + A_C] ** 2) ** p[o + M_K]
+    phi = p[o + PHI_INF] + (1.0 - p[o + PHI_INF]) / (1.0 + q)
+    dphi = -(1.0 - p[o + PHI_INF]) * p[o + M_K] * q / ((abs(r) + MS_EPS) * (1.0 + q) ** 2)
+    return phi, dphi
 
 
 @njit(**JIT)
@@ -42,13 +53,15 @@ def mount(y, s, p, o, X, Xd, dy):
     rates; returns (force, dissipated power [W])."""
     d = X - y[s + X_MEAN]
     dy[s + X_MEAN] = d / p[o + TAU_M]
-    dy[s + MS] = (d * d - y[s + MS]) / p[o + TAU_R]
-    phi = payne_factor(math.sqrt(2.0 * abs(y[s + MS])), p, o)
+    dr = (d * d - y[s + MS]) / p[o + TAU_R]
+    dy[s + MS] = dr
+    phi, dphi = payne_factor(y[s + MS], p, o)
+    give_up = 0.5 * dphi * dr / phi  # [1/s]: the energy-neutral share of a stiffness change
     F = p[o + K_E] * X + p[o + K_E3] * X * X * X
     loss = 0.0
     for j in range(N_BRANCHES):
         f = phi * p[o + K_1 + j] * y[s + j]
-        dy[s + j] = Xd - f / p[o + C_1 + j]
+        dy[s + j] = Xd - f / p[o + C_1 + j] - give_up * y[s + j]
         F += f
         loss += f * f / p[o + C_1 + j]
     return F, loss
