@@ -136,7 +136,7 @@ def valve_table(curves: list[dict]) -> pd.DataFrame:
     for c in curves:
         rows.append({"valve design": c["valve design"], "truth lift range [mm]": 1e3 * c["lift [m]"][-1],
                      "truth F(0) [N]": c["truth [N]"][0], "truth F(x_max) [N]": c["truth [N]"][-1],
-                     **{f"{k} max error [%]": c.get(f"{k} max error [%]", float("nan"))
+                     **{f"{k} max error [%]": c.get(f"{k} max error [%]", "not fitted")
                         for k in ("nominal", "approach 1", "approach 2")}})
     return pd.DataFrame(rows)
 
