@@ -102,6 +102,24 @@ def truth_lift_force(p: np.ndarray, valve: str, lifts: np.ndarray) -> np.ndarray
     raise ValueError(f"{valve}: not a shim stack or an intake valve")
 
 
+def model_pressure_area(d, valve: str) -> float:
+    """Area [m^2] the pressure drop acts on in the model: shim stacks
+    pi/12 (D_d - D_i)(2 D_d + D_i) (eq. 4.21, THESIS-ERRATA 19), intake discs
+    pi/4 (D_d^2 - D_h^2) (eq. 4.22)."""
+    g = d.group(valve)
+    if valve in SHIMS:
+        return math.pi / 12.0 * (g["D_d"] - g["D_i"]) * (2.0 * g["D_d"] + g["D_i"])
+    return math.pi / 4.0 * (g["D_d"] ** 2 - g["D_h"] ** 2)
+
+
+def truth_pressure_area(p: np.ndarray, valve: str) -> float:
+    """Area [m^2] the pressure drop acts on in the truth: the stack's
+    equivalent area A_EQ (plate bending) or the closed disc's A_P (seat land
+    with its leakage profile), as built."""
+    o = PO[valve]
+    return float(p[o + tshims.A_EQ] if valve in SHIMS else p[o + tintake.A_P])
+
+
 def truth_bench_lift(p: np.ndarray, rest: dict, valve: str, run, bench: dict) -> float:
     """Largest lift [m] the truth's valve reaches on the flow-bench run
     ``run`` (ideal actuator and sensors; bench: volume and back pressure)."""

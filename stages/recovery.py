@@ -26,6 +26,7 @@ from dampertwin.design import load
 from dampertwin.errors import UserError
 from dampertwin.protocols import build_runs, flow_bench, load_protocol
 from dampertwin.truth import TRUTH_VERSION
+from dampertwin.truth.part import build
 from dampertwin.variants import TOP_MOUNTS, VALVE_DESIGNS, load_variant
 
 VALVES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")  # fitted by approach 2
@@ -101,7 +102,9 @@ def valve_curves(conf: Path, base, sample, lab_nominal, a1_overlays: dict, a2) -
             models["approach 2"] = a2
         truth = rc.truth_lift_force(p, valve, lifts)
         curves = {k: rc.model_lift_force(d, valve, lifts) for k, d in models.items()}
-        out.append({"valve design": name, "valve": valve, "lift [m]": lifts.tolist(), "truth [N]": truth.tolist(),
+        out.append({"valve design": name, "valve": valve, "model area [m^2]": rc.model_pressure_area(nominal, valve),
+                    "truth area [m^2]": rc.truth_pressure_area(p, valve), "lift [m]": lifts.tolist(),
+                    "truth [N]": truth.tolist(),
                     **{f"{k} [N]": v.tolist() for k, v in curves.items()},
                     **{f"{k} max error [%]": 100 * rc.curve_error(v, truth) for k, v in curves.items()}})
     return out
@@ -136,14 +139,21 @@ def valve_table(curves: list[dict]) -> pd.DataFrame:
     for c in curves:
         rows.append({"valve design": c["valve design"], "truth lift range [mm]": 1e3 * c["lift [m]"][-1],
                      "truth F(0) [N]": c["truth [N]"][0], "truth F(x_max) [N]": c["truth [N]"][-1],
+                     "model area [mm^2]": 1e6 * c["model area [m^2]"], "truth area [mm^2]": 1e6 * c["truth area [m^2]"],
                      **{f"{k} max error [%]": c.get(f"{k} max error [%]", "not fitted")
                         for k in ("nominal", "approach 1", "approach 2")}})
     return pd.DataFrame(rows)
 
 
-def markdown(gas: list[dict], curves: list[dict], tm: list[dict], amp: float, sample: dict) -> str:
-    """The recovery tables with their definitions."""
+def markdown(gas: list[dict], curves: list[dict], tm: list[dict], amp: float, sample: dict, raw: dict) -> str:
+    """The recovery tables with their definitions; ``raw``: the gas-content
+    parameters behind the free-gas row."""
     g = pd.DataFrame(gas)
+    gas_note = ("- The parameters behind the free gas differ in definition and are not compared 1:1: the model's "
+                "oil.chi (gas volume fraction of the emulsion at P_ref, of which the share theta(P0) is "
+                f"undissolved at rest, eq. 4.14) nominal {raw['oil.chi nominal']:.5g}, approach 1 "
+                f"{raw['oil.chi approach 1']:.5g}, approach 2 {raw['oil.chi approach 2']:.5g}; the truth's "
+                f"alpha_free (free gas at P0 in m^3 at P_ref per m^3 of liquid) {raw['truth alpha_free']:.5g}.")
     defs = "\n".join(f"- {r['quantity']}: {r['definition']}." for r in gas)
     return (
         f"# Recovery of the lab's truth by the calibrated model (issue 32, acceptance 5)\n\n{SYNTHETIC}\n\n"
@@ -153,7 +163,7 @@ def markdown(gas: list[dict], curves: list[dict], tm: list[dict], amp: float, sa
         "(results/approach1); approach 2: results/approach2/fit/overlay.yaml (its top mount is approach 1's). "
         "Error = (model - truth) / |truth|. Only quantities with a counterpart on both sides are compared.\n\n"
         "## Gas content and oil bulk modulus\n\n"
-        + kpi.to_markdown(g.drop(columns="definition"), 4) + "\n\n" + defs + "\n\n"
+        + kpi.to_markdown(g.drop(columns="definition"), 4) + "\n\n" + defs + "\n" + gas_note + "\n\n"
         "## Valve lift-force curves over the flow bench's lift range\n\n"
         "Force holding the valve at lift x, for x from 0 to the largest lift of the truth's valve on its "
         f"flow-bench run (conf/test/flowbench.yaml, the test's flow ramp; {rc.CURVE_POINTS} lifts). Model: "
@@ -161,8 +171,9 @@ def markdown(gas: list[dict], curves: list[dict], tm: list[dict], amp: float, sa
         "coefficients. Truth: shim stacks truth.shims.elastic_force (plate bending, preload, backing set; "
         "without the shim-to-shim friction hysteresis around it), intake valves the coil spring F_S + K_S x, "
         "of the part as built. Max error = max over the lifts of |F_model - F_truth| / |F_truth|. Approach 2 "
-        "fits the four baseline valves only. The model's pressure area differs from the truth's, so equal "
-        "forces need not mean equal opening pressures.\n\n"
+        "fits the four baseline valves only. The areas the pressure drop acts on (model: eq. 4.21 / 4.22 on the "
+        "drawings; truth: plate-bending equivalent area or seat land, as built) differ, so equal forces need not "
+        "mean equal opening pressures.\n\n"
         + kpi.to_markdown(valve_table(curves), 2) + "\n\n"
         "## Top mount: dynamic stiffness and loss angle\n\n"
         f"Sines of {amp * 1e3:g} mm (the middle amplitude of the sweep) at the sweep's frequencies, "
@@ -234,15 +245,19 @@ def run(conf: Path, results: Path, out: Path) -> dict:
     a2 = base.with_overrides(overlays["approach2"])
     sample, lab_nominal = _truth_sample(conf)
     p, rest = lab.truth_part(lab_nominal, lab_nominal, sample)
+    truth_inputs = build(lab_nominal, lab_nominal, sample["truth"])[2]  # the sample's values (not as built)
     gas = gas_and_oil(base, a1, a2, p, rest)
     a1_valves = {n: overlays[f"valve/{n}"] for n in VALVE_DESIGNS}
     curves = valve_curves(conf, base, sample, lab_nominal, a1_valves, a2)
     tm, amp = top_mounts(conf, base, sample, lab_nominal, {n: overlays[f"topmount/{n}"] for n in TOP_MOUNTS})
     m = metrics(gas, curves, tm, sample)
     out.mkdir(parents=True, exist_ok=True)
-    write_text(out / "recovery.md", markdown(gas, curves, tm, amp, sample))
+    raw = {**{f"oil.chi {k}": float(d["oil.chi"]) for k, d in (("nominal", base), ("approach 1", a1),
+                                                                 ("approach 2", a2))},
+           "truth alpha_free": float(truth_inputs["alpha_free"])}
+    write_text(out / "recovery.md", markdown(gas, curves, tm, amp, sample, raw))
     doc = {"note": SYNTHETIC, "synthetic": True, "truth": TRUTH_VERSION, "sample_hash": sample.get("_hash", ""),
-           "gas_and_oil": gas, "valves": curves, "topmount": {"amplitude [m]": amp, "rows": tm},
+           "gas_and_oil": gas, "gas_parameters": raw, "valves": curves, "topmount": {"amplitude [m]": amp, "rows": tm},
            "inputs": {k: str(v.relative_to(results.parent)) for k, v in paths.items()}}
     write_text(out / "recovery.json", json.dumps(doc, indent=1, sort_keys=True) + "\n")
     figures(curves, tm, out)
