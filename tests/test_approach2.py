@@ -105,46 +105,6 @@ def test_table_7_1_and_7_2_conventions_match_the_thesis_rows():
     assert t72["300 Hz difference [dB]"].iloc[0] == pytest.approx(4.4)  # |s - m| (printed 4.3)
 
 
-def recovered_vs_truth(overlay: Path) -> pd.DataFrame:
-    """Test-only (reads the lab's hidden sample through tests/lab_truth.py):
-    each parameter approach 2 fitted, its nominal, fitted and true value and
-    the fitted error relative to the truth (issue 12, acceptance 5)."""
-    from lab_truth import true_values
-
-    fitted = yaml_load_file(overlay)["overrides"]
-    truth = true_values(list(fitted), None)
-    nominal = load(CONF / "design" / "baseline.yaml")
-    return pd.DataFrame([{"parameter": k, "nominal": float(nominal[k]), "fitted": float(v), "truth": truth[k],
-                          "nominal error [%]": 100 * (float(nominal[k]) - truth[k]) / abs(truth[k]),
-                          "fitted error [%]": 100 * (float(v) - truth[k]) / abs(truth[k])}
-                         for k, v in fitted.items()])
-
-
-@pytest.mark.skipif(not (ROOT / "results/approach2/fit/overlay.yaml").is_file(),
-                    reason="no approach-2 fit in results/ (run the approach2 stages)")
-def test_recovered_valve_parameters_against_the_lab_truth():
-    """Writes results/approach2/recovered_vs_truth.md (a test report, not a
-    DVC output): recovered valve / compliance parameters against the truth."""
-    from lab_truth import stiffness_curve_error, true_design
-
-    overlay = ROOT / "results/approach2/fit/overlay.yaml"
-    tab = recovered_vs_truth(overlay)
-    assert np.all(np.isfinite(tab[["fitted", "truth"]].to_numpy()))
-    # the stiffness law's terms trade off (a-b correlation): what the data fix is the curve
-    real, _ = true_design(None)
-    nominal = load(CONF / "design" / "baseline.yaml")
-    fitted = nominal.with_overrides(yaml_load_file(overlay)["overrides"])
-    curves = pd.DataFrame([{"valve": v, "nominal curve error [%]": 100 * stiffness_curve_error(nominal, real, v),
-                            "fitted curve error [%]": 100 * stiffness_curve_error(fitted, real, v)}
-                           for v in a2.VALVES])
-    assert np.all(np.isfinite(curves.iloc[:, 1:].to_numpy()))
-    (ROOT / "results/approach2/recovered_vs_truth.md").write_text(
-        "Approach 2: recovered parameters vs the virtual lab's hidden truth (test-only read)\n\n"
-        + tab.to_markdown(index=False, floatfmt=".4g") + "\n\n"
-        "Largest relative error of each valve's stiffness curve (thesis eq. 4.24) over the lift range the real "
-        "valve reaches on the flow bench:\n\n" + curves.to_markdown(index=False, floatfmt=".3g") + "\n")
-
-
 def test_input_cutoff_keeps_the_motion_and_is_checked():
     """The training / verification input low-pass must pass the protocols'
     motion (>= 4x its highest fundamental) and filter at all (< 0.45 fs);
