@@ -23,7 +23,7 @@ design loader (nominal values), never ``dampertwin.model`` (a test walks
 the imports; another compares function bodies).
 """
 
-TRUTH_VERSION = "dampertwin-truth 1"
+TRUTH_VERSION = "dampertwin-truth 2"  # 2: ports before the stacks, swept pilot, walls across chambers, passive Payne
 
 
 def _refresh_compiled_cache() -> None:
