@@ -7,7 +7,8 @@ replaces it with the Markdown that ``GENERATORS[NAME]()`` returns:
 - ``design-schema``: the design YAML schema, from ``dampertwin.design.schema``;
 - ``config-groups``: every configuration group of ``conf/`` with its options;
 - ``effects-table``: the effect library (``dampertwin.model.params.effects_table``);
-- ``validation-approach1`` / ``validation-approach2``: the committed metrics and tables.
+- ``validation-approach1`` / ``validation-approach2``: the committed metrics and tables;
+  ``validation-recovery`` / ``validation-discrepancy``: the committed recovery and discrepancy reports.
 
 Registered in mkdocs.yml (``hooks:``); ``python scripts/mkdocs_hooks.py NAME`` prints one.
 """
@@ -172,6 +173,19 @@ def validation_approach2() -> str:
     return "\n".join(out)
 
 
+def validation_recovery() -> str:
+    rec = ROOT / "results" / "recovery"
+    m = json.loads((rec / "metrics.json").read_text())
+    return "\n".join([f"Generated from the committed `results/recovery/` files. " + _code(m), "",
+                      (rec / "recovery.md").read_text().strip()])
+
+
+def validation_discrepancy() -> str:
+    d = ROOT / "results" / "discrepancy"
+    return "\n".join(["Generated from the committed `results/discrepancy/report.md`.", "",
+                      (d / "report.md").read_text().strip()])
+
+
 def effects_table() -> str:
     from dampertwin.design import load
     from dampertwin.model.params import effects_table as table
@@ -180,7 +194,8 @@ def effects_table() -> str:
 
 
 GENERATORS = {"effects-table": effects_table, "cli": cli, "design-schema": design_schema, "config-groups": config_groups,
-              "validation-approach1": validation_approach1, "validation-approach2": validation_approach2}
+              "validation-approach1": validation_approach1, "validation-approach2": validation_approach2,
+              "validation-recovery": validation_recovery, "validation-discrepancy": validation_discrepancy}
 
 
 def on_page_markdown(markdown: str, page=None, config=None, files=None) -> str:  # mkdocs hook
