@@ -94,10 +94,13 @@ def map_conductance(current, dp_open, aux):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def opening_flow(p, aux, dp_open, dp):
+def opening_flow(p, aux, dp_open, dp, Q_map):
     """Flow [m^3/s] through the active valve held at the opening of the static map at dp_open,
     under the pressure drop dp [Pa]: G(I, dp_open) r(dp). Its sign is that of dp whatever
-    dp_open (passive: Q dp >= 0); at dp_open = dp it is the map's flow (|dp| >= DP_SMALL)."""
+    dp_open (passive: Q dp >= 0); at dp_open = dp it is the map's flow (|dp| >= DP_SMALL), and
+    then the map's own value Q_map is returned (bit-identical when the effects are off)."""
+    if dp_open == dp:
+        return Q_map
     return map_conductance(p[_L.P.CURRENT], dp_open, aux) * dp / _root_weight(dp)
 
 

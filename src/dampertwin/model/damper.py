@@ -99,8 +99,7 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     if extended:
         p_o = spool_pressure(y, oe + EX.p_spool, p, dp_a, dy)
         p_o = opening_pressure(y, oe + EX.p_open, p, p_o, dy)
-        if p[P.E_VALVE_FRICTION] > 0.5 or p[P.E_AV_LAG] > 0.5:
-            Q_a = opening_flow(p, aux, p_o, dp_a)
+        Q_a = opening_flow(p, aux, p_o, dp_a, Q_a)
 
     # compliance (eq. 4.13-4.18) and chambers (eq. 4.5-4.12)
     K_r, K_c, K_b = moduli(p, P_r, P_c, P_b, P_res)
