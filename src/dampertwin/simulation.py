@@ -170,7 +170,7 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
     cfg = setups[0][0]
     if any(s[0] != cfg for s in setups):
         raise ValueError("simulate_batch: all designs must switch the effects with states (active_valve_lag, "
-                         "oil_thermal) alike")
+                         "valve_friction_current, oil_thermal) alike")
     P = np.vstack([s[1] for s in setups])
     problems = [parameter_problems(p, configuration) for p in P]
     invalid = np.array([bool(b) for b in problems])

@@ -5,11 +5,19 @@ clamped to the grid, odd in dp (THESIS-ERRATA 30)."""
 from __future__ import annotations
 
 import numpy as np
+import math
+
 from numba import njit
 
 from .declarations import Parameter
 
 PARAMETERS = (Parameter("CURRENT", "A", None, "active-valve current (test condition)"),)
+
+# The valve's opening as an orifice conductance G [m^3/(s Pa^0.5)]: Q = G r(dp) with the rounded
+# orifice root r(dp) = dp / (dp^2 + DP_ROOT^2)^(1/4) (sign(dp) sqrt|dp| above DP_ROOT, laminar-like
+# below; Merritt, Hydraulic Control Systems, 1967, ch. 3, for the orifice law).
+DP_ROOT = 2.0e4  # [Pa] rounding of the orifice root at dp = 0 (0.2 bar: the map's first, linear, interval)
+DP_SMALL = 1.0   # [Pa] below it the map's secant Q/dp is taken at DP_SMALL (the map is linear there)
 
 
 def pack_map(currents, dps, flow) -> np.ndarray:
@@ -69,6 +77,31 @@ def active_flow(p, aux, dp):
     """The active valve in the assembled model: flow [m^3/s] at dp [Pa] and
     the test's current (parameter CURRENT), map in ``aux``."""
     return map_flow(p[_L.P.CURRENT], dp, aux)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _root_weight(dp):
+    """(dp^2 + DP_ROOT^2)^(1/4) [Pa^0.5]: r(dp) = dp / _root_weight(dp)."""
+    return math.sqrt(math.sqrt(dp * dp + DP_ROOT * DP_ROOT))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def map_conductance(current, dp_open, aux):
+    """The opening [m^3/(s Pa^0.5)] the static map holds at the pressure drop dp_open [Pa]:
+    G = Q_map(I, dp_open) / r(dp_open) >= 0 (the map is odd and has the sign of dp)."""
+    a = max(abs(dp_open), DP_SMALL)
+    return map_flow(current, a, aux) / a * _root_weight(dp_open)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def opening_flow(p, aux, dp_open, dp, Q_map):
+    """Flow [m^3/s] through the active valve held at the opening of the static map at dp_open,
+    under the pressure drop dp [Pa]: G(I, dp_open) r(dp). Its sign is that of dp whatever
+    dp_open (passive: Q dp >= 0); at dp_open = dp it is the map's flow (|dp| >= DP_SMALL), and
+    then the map's own value Q_map is returned (bit-identical when the effects are off)."""
+    if dp_open == dp:
+        return Q_map
+    return map_conductance(p[_L.P.CURRENT], dp_open, aux) * dp / _root_weight(dp)
 
 
 from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

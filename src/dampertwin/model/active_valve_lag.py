@@ -1,12 +1,26 @@
-"""Dynamics of the active valve that its static P/Q map cannot capture
-(thesis 7.4; not in the thesis model; off in the baseline design).
+"""Dynamics of the active valve's opening that its static P/Q map cannot
+capture (thesis 7.3, first discrepancy: at low current and high velocity,
+"the look-up-table approach ... is not able to capture the dynamic behavior
+of the active valve"; not in the thesis model; off in the baseline design).
 
-The solenoid, the pilot stage and the spool need time to reach the opening
-that the static map assumes: the valve's effective flow Q_a [m^3/s] follows
-the static map value Q_map(I, dp) with a first-order lag of time constant tau
-[s], tau dQ_a/dt = Q_map - Q_a (first-order damper dynamics, Savaresi et al.,
-Semi-Active Suspension Control Design for Vehicles, 2010, 2.3 eq. 2.9).
-One state, Q_lag, in the extended configurations only (layout.variant).
+The valve's solenoid (R-L coil with eddy currents), its pilot stage and the
+main stage filling its control chamber need time to reach the opening that
+the static map assumes. The OPENING lags, not the flow: the opening is the
+map's opening G(I, p_o) at an opening pressure p_o [Pa] that follows the
+pressure drop dp with a first-order lag of time constant tau [s],
+
+    tau dp_o/dt = dp - p_o,       Q_a = G(I, p_o) r(dp),
+
+G = Q_map / r >= 0 the map's orifice conductance and r(dp) the rounded
+orifice root (active_valve.opening_flow). The flow therefore always has the
+sign of its pressure drop (Q_a dp >= 0: the valve stays passive, which a lag
+of the flow itself broke), and tau -> 0 gives the static map. First-order
+response of a semi-active damper's damping coefficient (an opening, >= 0) to
+its command: Savaresi et al., Semi-Active Suspension Control Design for
+Vehicles, 2010, ch. 2. The current is constant in every test, so a lag of the
+effective current alone would be invisible there; the lag acts on the
+opening's response to the pressure (the main stage following its pilot).
+One state, p_open, in the extended configurations only (layout.variant).
 """
 
 from __future__ import annotations
@@ -16,28 +30,30 @@ from numba import njit
 from .declarations import Parameter, State
 
 PARAMETERS = (
-    Parameter("AV_TAU", "s", "active_valve_lag.tau", "time constant of the active valve's flow"),
-    Parameter("E_AV_LAG", "-", "effects.active_valve_lag", "switch: active-valve lag (a state)"),
+    Parameter("AV_TAU", "s", "active_valve_lag.tau", "time constant of the active valve's opening"),
+    Parameter("E_AV_LAG", "-", "effects.active_valve_lag", "switch: active-valve opening lag (a state)"),
 )
 
-STATES = (State("Q_lag", "m^3/s", 1e-5, 0.0, "lagged flow of the active valve (third tube -> reserve)"),)
+# rest: no pressure drop across the valve (third tube and reserve both at the precharge)
+STATES = (State("p_open", "Pa", 1e5, 0.0, "pressure drop the active valve's opening has reached (lag)"),)
 
 
 @njit(cache=True, error_model="numpy")
-def lag_rate(Q, Q_map, tau):
-    """dQ/dt = (Q_map - Q) / tau [m^3/s^2]."""
-    return (Q_map - Q) / tau
+def lag_rate(p_o, dp, tau):
+    """dp_o/dt = (dp - p_o) / tau [Pa/s]."""
+    return (dp - p_o) / tau
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def lagged_flow(y, o, p, Q_map, dy):
-    """The lag in the assembled (extended) model: returns the active valve's
-    flow [m^3/s] and writes dy[o] (its state at y[o]); Q_map when off."""
+def opening_pressure(y, o, p, dp, dy):
+    """The lag in the assembled (extended) model: returns the pressure drop
+    [Pa] whose static opening the valve has (its state at y[o]) and writes
+    dy[o]; ``dp`` itself when off."""
     if p[_L.P.E_AV_LAG] > 0.5:
-        dy[o] = lag_rate(y[o], Q_map, p[_L.P.AV_TAU])
+        dy[o] = lag_rate(y[o], dp, p[_L.P.AV_TAU])
         return y[o]
     dy[o] = 0.0
-    return Q_map
+    return dp
 
 
 from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

@@ -22,7 +22,7 @@ state to a submodel does not touch this file.
 
 The effects the thesis lacks (docs "Effect library") hook in here, each a
 call into its own file that returns its input unchanged when switched off.
-The two with states (active_valve_lag, oil_thermal) run only in the extended
+The three with states (active_valve_lag, valve_friction_current, oil_thermal) run only in the extended
 configurations ``rhs_damper_x`` / ``rhs_module_x`` (layout.variant), whose
 effect states follow the damper / module states.
 """
@@ -32,8 +32,8 @@ from __future__ import annotations
 from numba import njit
 
 from ..solver import rhs_signature
-from .active_valve import active_flow
-from .active_valve_lag import lagged_flow
+from .active_valve import active_flow, opening_flow
+from .active_valve_lag import opening_pressure
 from .aeration import aeration
 from .bench import upstream_modulus, upstream_pressure_rate
 from .chambers import chamber_volumes, moduli, pressure_rate, rod_force
@@ -46,7 +46,7 @@ from .piston_leakage import leakage
 from .rod import motion, rod_position, stroke
 from .rod_friction import friction
 from .top_mount import mount
-from .valve_friction_current import effective_drop
+from .valve_friction_current import spool_pressure
 from .valves import bypass, valve
 
 SIGNATURE = rhs_signature()
@@ -92,10 +92,14 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     Q_p = Q0 - Q1 + leakage(p, P_r, P_c, p[P.NU] / nu)  # rebound -> compression (THESIS-ERRATA 7)
     Q_bv = Q2 - Q3  # compression -> reserve
     Q_bp = bypass(p, P_r, P_b)
-    # active valve: static map (4.4), spool friction and lag (effects)
-    Q_a = active_flow(p, aux, effective_drop(p, P_b - P_res))
+    # active valve: static map (4.4); the effects spool friction and lag move its opening
+    # (the map's opening at p_o, under the actual drop: active_valve.opening_flow)
+    dp_a = P_b - P_res
+    Q_a = active_flow(p, aux, dp_a)
     if extended:
-        Q_a = lagged_flow(y, oe + EX.Q_lag, p, Q_a, dy)
+        p_o = spool_pressure(y, oe + EX.p_spool, p, dp_a, dy)
+        p_o = opening_pressure(y, oe + EX.p_open, p, p_o, dy)
+        Q_a = opening_flow(p, aux, p_o, dp_a, Q_a)
 
     # compliance (eq. 4.13-4.18) and chambers (eq. 4.5-4.12)
     K_r, K_c, K_b = moduli(p, P_r, P_c, P_b, P_res)

@@ -110,6 +110,14 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
         for name, key in (("L_R0", "geometry.l_r0"), ("L_C0", "geometry.l_c0"), ("V_B", "geometry.V_b"),
                           ("V_G0", "constants.V_gas0"), ("P0", "oil.P_0")):
             need(p[P[name]] > 0, f"{key} = {p[P[name]]!r}; expected > 0")
+    if configuration in ("damper", "module") and p[P.E_VALVE_FRICTION] > 0.5:
+        F_f = p[P.VF_F0] + (p[P.VF_F1] - p[P.VF_F0]) * p[P.CURRENT] / p[P.VF_I1]
+        need(F_f >= 0, f"valve_friction_current: spool friction F0 + (F1 - F0) I / I_1 = {F_f!r} N at the current "
+                       f"{p[P.CURRENT]!r} A; expected >= 0 (a current above I_1 with F1 < F0)")
+        need(p[P.VF_A] > 0 and p[P.VF_TAU] > 0 and p[P.VF_DPREG] > 0,
+             "valve_friction_current.A_spool, tau_s and dp_reg must be > 0")
+    if configuration in ("damper", "module") and p[P.E_AV_LAG] > 0.5:
+        need(p[P.AV_TAU] > 0, f"active_valve_lag.tau = {p[P.AV_TAU]!r}; expected > 0")
     if configuration == "module":
         need(p[P.M_ROD] > 0, f"geometry.M_rod = {p[P.M_ROD]!r}; expected > 0")
         need(p[P.TM_FLD0] > 0, f"top_mount.F_LD[0] = {p[P.TM_FLD0]!r}; expected > 0 (static stiffness)")
@@ -161,15 +169,18 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
     EffectRecord("piston_leakage", "laminar leakage past a worn piston band",
                  "White, Viscous Fluid Flow, eq. 3-44", False,
                  f"rebound peak force ({_M13})", "lower", _E),
-    EffectRecord("active_valve_lag", "first-order lag of the active valve's flow behind its static P/Q map",
-                 "Savaresi et al. 2010, 2.3", False,
-                 f"third-tube peak pressure; force-velocity phase lag ({_M16})",
-                 "pressure higher; phase lag smaller (the valve opens late, the pressure builds ahead)", _E),
+    EffectRecord("active_valve_lag", "first-order lag of the active valve's opening behind the static opening of "
+                 "its P/Q map (the flow keeps the sign of its pressure drop: passive); thesis 7.3, first discrepancy",
+                 "Savaresi et al. 2010, ch. 2", False,
+                 f"third-tube peak pressure; compression peak force ({_M16})",
+                 "higher (the valve opens late: the pressure overshoots)", _E),
     EffectRecord("aeration", "free air in the compression chamber (Boyle)", "Duym, VSD 33 (2000)", False,
                  f"force-velocity phase lag; compression peak force ({_M16})",
                  "phase lag larger; compression peak lower (force builds up later)", _E),
-    EffectRecord("valve_friction_current", "current-dependent Coulomb friction of the active valve's spool",
-                 "Manring 2005, 4.6; thesis 7.4", False,
+    EffectRecord("valve_friction_current", "Coulomb friction of the active valve's spool with memory (a stuck "
+                 "spool holds its opening: opening and closing branches 2 F_f / A_sp apart), linear in the current, "
+                 "growing or shrinking; thesis 7.3, third discrepancy (valve friction at the end of rebound)",
+                 "Al-Bender et al. 2005 (Maxwell slip); Manring 2005, 4.6", False,
                  f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E),
     EffectRecord("oil_thermal", "oil temperature state: viscosity and bulk modulus follow the heating; "
                  "output `oil temperature [K]` (the warm-up test's thermocouple)",
