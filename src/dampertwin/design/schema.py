@@ -161,7 +161,8 @@ EFFECTS: dict[str, str] = {
     "active_valve_lag": "first-order lag of the active valve's flow behind its static P/Q map (thesis 7.4)",
     "aeration": "free air entrained in the compression chamber, Boyle's law (thesis 7.4)",
     "valve_friction_current": "current-dependent Coulomb friction of the active valve's spool (thesis 7.4)",
-    "oil_thermal": "oil temperature rising with dissipated power; viscosity and bulk modulus follow it",
+    "oil_thermal": "oil temperature rising with dissipated power; viscosity, the oil's bulk modulus, oil "
+                   "expansion and gas pressure follow it",
     "rod_friction_asymmetric": "direction-dependent rod seal friction (rebound vs compression)",
     "top_mount_backlash": "free play of the top mount (smoothed dead zone)",
     "seal_friction_pressure": "rod seal friction growing with the rebound-chamber pressure",
@@ -292,6 +293,7 @@ EFFECT_PARAMETERS.update({
     "oil_thermal.hA": ("W/K", NONNEG),
     "oil_thermal.b_nu": ("1/K", NONNEG),
     "oil_thermal.c_K": ("1/K", Range(0.0, 0.02, True, True)),
+    "oil_thermal.beta_T": ("1/K", Range(0.0, 0.005, True, True)),
     "rod_friction_asymmetric.a": ("-", Range(-0.95, 0.95, True, True)),
     "rod_friction_asymmetric.v_reg": ("m/s", POS),
     "top_mount_backlash.delta": ("m", upto(0.05, zero=True)),

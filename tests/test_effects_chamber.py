@@ -1,0 +1,159 @@
+"""Physics of the chamber / friction effects of the library (issue 34,
+acceptance 2): oil_thermal acts on the oil's modulus only and adds the oil's
+expansion and the gas's heating; aeration carries free air as a state with
+release and dissolution at finite rates; rod_friction_asymmetric is not a
+force offset. Direct right-hand-side calls and short runs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dampertwin import Excitation, simulate
+from dampertwin.design import load
+from dampertwin.model import layout as L
+from dampertwin.model.active_valve import pack_map
+from dampertwin.model.chambers import moduli
+from dampertwin.model.damper import RHS_BY_CFG
+from dampertwin.model.params import pack
+
+from conftest import BASELINE
+
+
+@pytest.fixture(scope="module")
+def base():
+    return load(BASELINE)
+
+
+def _on(design, effect, **extra):
+    ov = {e.key: e.typical for e in design.effect_parameters(effect)}
+    ov.update(extra)
+    ov[f"effects.{effect}"] = True
+    return design.with_overrides(ov)
+
+
+def _rhs_at_rest(design, cfg_name="damper", edit=None):
+    """One right-hand-side call of the extended configuration at its rest
+    state (no motion), ``edit(y, p)`` changing the state first. Returns
+    (y, p, dy, out)."""
+    p = pack(design).copy()
+    cfg = L.variant(L.CONFIGURATIONS[cfg_name], p)
+    ex = Excitation.from_samples(np.linspace(0.0, 0.1, 11), np.zeros(11))
+    p[L.P.EX_T0], p[L.P.EX_DT] = ex.t0, ex.dt
+    y = L.initial_state(p, cfg)
+    if edit:
+        edit(y, p)
+    dy, out = np.zeros_like(y), np.zeros(L.N_OUT)
+    aux = pack_map(design.pq_map.currents, design.pq_map.dps, design.pq_map.flow)
+    RHS_BY_CFG[cfg](0.0, y, p, ex.array(), aux, dy, out)
+    return y, p, dy, out
+
+
+# ------------------------------------------------------------ oil_thermal
+def _chamber_moduli(design, P, K_oil, T):
+    p = pack(design)
+    return np.array(moduli(p, P, P, P, P, K_oil, T))  # the reserve at P too
+
+
+def _rhs_moduli(design, P, T):
+    """The chamber moduli [Pa] the assembled right-hand side uses, read at
+    rest with every chamber and the reserve at P and the oil at T != T_amb:
+    there dP_i/dt = K_i beta_T dT/dt (no flow, no motion)."""
+    def state(y, p):
+        y[L.EB_DAMPER + L.EX.T_oil] = T
+        y[L.S.P_r] = y[L.S.P_c] = y[L.S.P_b] = P
+        y[L.S.V_g] = p[L.P.V_G0] * (p[L.P.P0] * T / p[L.P.TEMP] / P) ** (1.0 / p[L.P.GAMMA])
+    _, p, dy, out = _rhs_at_rest(design, edit=state)
+    assert abs(out[L.O.P_RES] / P - 1.0) < 1e-12
+    src = p[L.P.TH_BETA] * dy[L.EB_DAMPER + L.EX.T_oil]
+    assert abs(src) > 0
+    return np.array([dy[L.S.P_r], dy[L.S.P_c], dy[L.S.P_b]]) / src
+
+
+@pytest.mark.parametrize("dT", [-20.0, 40.0])
+def test_thermal_law_acts_on_the_oils_modulus_only(base, dT):
+    """Limit case (no gas, no wall): the chamber modulus of the assembled
+    model is the oil law K_oil0 (1 - c_K dT). With the wall on, the wall's
+    compliance 1/K - 1/K_oil stays what it is at T0 (the old law, scaling the
+    whole chamber modulus, changes it by the factor)."""
+    from dampertwin.model.oil_thermal import modulus_factor
+    d = _on(base, "oil_thermal")
+    c_K, K0, T0 = d["oil_thermal.c_K"], d["oil.K_oil"], d["oil.T"]
+    K_T = K0 * modulus_factor(c_K, dT)
+    assert K_T == pytest.approx(K0 * (1.0 - c_K * dT), rel=1e-15)
+    bare = d.with_overrides({"effects.gas_content": False, "effects.wall_compliance": False,
+                             "effects.cavitation": False})
+    np.testing.assert_allclose(_rhs_moduli(bare, 3e5, T0 + dT), K_T, rtol=1e-9)
+    wall = d.with_overrides({"effects.gas_content": False, "effects.cavitation": False})
+    for P in (2e5, 2e6):
+        hot, ref = _rhs_moduli(wall, P, T0 + dT), _chamber_moduli(wall, P, K0, T0)
+        # rebound chamber: no wall compliance; compression and third tube: the same wall as at T0
+        assert hot[0] == pytest.approx(K_T, rel=1e-9)
+        assert ref[1] < 0.95 * K0  # the wall is a visible part of the compliance
+        np.testing.assert_allclose(1.0 / hot[1:] - 1.0 / K_T, 1.0 / ref[1:] - 1.0 / K0, rtol=1e-6)
+
+
+def test_thermal_gas_follows_the_ideal_gas_law(base):
+    """With the oil's modulus held temperature-independent (c_K = 0) and no
+    free gas in the emulsion (chi = 0), a change of temperature does not change
+    any chamber modulus; the reserve gas at fixed volume goes up by T/T0 and
+    the emulsion's free gas (eq. 4.15, T/T_ref) softens the chamber."""
+    d = _on(base, "oil_thermal", **{"oil_thermal.c_K": 0.0, "oil_thermal.beta_T": 0.0})
+    T0 = d["oil.T"]
+    plain = d.with_overrides({"oil.chi": 0.0})
+    K0 = plain["oil.K_oil"]
+    for P in (2e5, 2e6):
+        assert np.array_equal(_chamber_moduli(plain, P, K0, T0 + 30.0), _chamber_moduli(plain, P, K0, T0))
+    assert d["oil.P_sat"] > 5e5
+    for P in (2e5, 5e5):  # free gas below P_sat: warmer gas, larger volume, softer chamber
+        assert np.all(_chamber_moduli(d, P, K0, T0 + 30.0) < _chamber_moduli(d, P, K0, T0))
+
+    def warm(y, p):
+        y[L.EB_DAMPER + L.EX.T_oil] = T0 + 30.0
+    _, p, _, out = _rhs_at_rest(d, edit=warm)
+    assert out[L.O.P_RES] == pytest.approx(d["oil.P_0"] * (T0 + 30.0) / T0, rel=1e-14)
+    _, _, _, cold = _rhs_at_rest(d)
+    assert cold[L.O.P_RES] == d["oil.P_0"]
+
+
+def test_thermal_expansion_fills_the_chambers_storage(base):
+    """Damper at rest, oil 20 K above the ambient, cooling: no flow, no
+    motion, so each chamber's storage V/K dP/dt equals its oil's volume
+    change beta_T V dT/dt (volume balance eq. 4.9 with the expansion
+    source), and dT/dt is the cooling rate -hA dT / C_th."""
+    d = _on(base, "oil_thermal")
+    T0 = d["oil.T"]
+
+    def warm(y, p):
+        y[L.EB_DAMPER + L.EX.T_oil] = T0 + 20.0
+        y[L.S.P_r] = y[L.S.P_c] = y[L.S.P_b] = p[L.P.P0] * (T0 + 20.0) / T0  # balanced with the warm gas
+    y, p, dy, out = _rhs_at_rest(d, edit=warm)
+    dT = dy[L.EB_DAMPER + L.EX.T_oil]
+    assert dT == pytest.approx(-d["oil_thermal.hA"] * 20.0 / d["oil_thermal.C_th"], rel=1e-12)
+    beta = d["oil_thermal.beta_T"]
+    assert max(abs(out[k]) for k in (L.O.Q0, L.O.Q1, L.O.Q2, L.O.Q3, L.O.Q_BP, L.O.Q_A)) < 1e-15
+    V_r, V_c = p[L.P.A_R] * p[L.P.L_R0], p[L.P.A_B] * p[L.P.L_C0]
+    for st, V in ((L.O.ST_R, V_r), (L.O.ST_C, V_c), (L.O.ST_B, p[L.P.V_B])):
+        assert out[st] == pytest.approx(beta * V * dT, rel=1e-9)
+    assert dy[L.S.P_c] < 0.0  # cooling oil shrinks: the pressure falls
+
+
+def test_thermal_expansion_moves_the_oil_into_the_reserve(base):
+    """Warm-up run: with the expansion the reserve gas ends compressed by
+    the oil's volume growth beta_T V_oil dT (V_oil the three chambers' oil),
+    read from the reserve pressure through the gas law P_res = P0 (V0/V)^G T/T0."""
+    ex = Excitation.sine(0.01, 8.0, 3.0)
+    runs = {}
+    for beta in (0.0, 7e-4):
+        d = _on(base, "oil_thermal", **{"oil_thermal.C_th": 400.0, "oil_thermal.beta_T": beta})
+        r = simulate(d, ex, "damper", current=1.6, rate=2000.0)
+        assert r.ok
+        T, P = r["oil temperature [K]"][-1], r["p reserve [Pa]"][-1]
+        p = pack(d)
+        V_g = p[L.P.V_G0] * (p[L.P.P0] * T / p[L.P.TEMP] / P) ** (1.0 / p[L.P.GAMMA])
+        runs[beta] = (V_g, T)
+    p = pack(base)
+    V_oil = p[L.P.A_R] * p[L.P.L_R0] + p[L.P.A_B] * p[L.P.L_C0] + p[L.P.V_B]  # stroke 0 at the end
+    dT = runs[7e-4][1] - base["oil.T"]
+    assert dT > 1.0
+    assert runs[0.0][0] - runs[7e-4][0] == pytest.approx(7e-4 * V_oil * dT, rel=0.03)
