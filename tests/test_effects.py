@@ -254,8 +254,11 @@ def _kpi_thermal(base):
     on = simulate(_on(base, "oil_thermal", **{"oil_thermal.C_th": 400.0}), ex, "damper", current=1.6, rate=2000.0)
     last = off.time > 10.0 - 1.0 / 8.0
     assert on["oil temperature [K]"][-1] > base["oil.T"] + 5.0
-    # warmer, thinner, softer oil: compression peak lower
-    assert on["rod force [N]"][last].min() > off["rod force [N]"][last].min() + 0.3
+    # warmer gas (T/T0) and expanded oil pushed into the reserve: the reserve pressure rises by more than the
+    # gas heating alone, and the gas force with it (compression peak larger)
+    P_on, P_off = on["p reserve [Pa]"][last].mean(), off["p reserve [Pa]"][last].mean()
+    assert P_on / P_off > on["oil temperature [K]"][last].mean() / base["oil.T"]
+    assert on["rod force [N]"][last].min() < off["rod force [N]"][last].min() - 1.0
 
 
 def _kpi_asymmetric(base):

@@ -171,12 +171,15 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
     EffectRecord("valve_friction_current", "current-dependent Coulomb friction of the active valve's spool",
                  "Manring 2005, 4.6; thesis 7.4", False,
                  f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E),
-    EffectRecord("oil_thermal", "oil temperature state: viscosity and bulk modulus follow the heating; "
-                 "output `oil temperature [K]` (the warm-up test's thermocouple)",
-                 "Lion & Loose 2002; Seeton 2006; Totten 2000", False,
-                 "oil temperature and compression peak force in the last cycle (damper, warm-up excitation 8 Hz "
-                 "+-10 mm for 10 s, C_th 400 J/K; energy balance C_th dT + hA int(T - T_amb) dt = int F s' dt)",
-                 "> 5 K warmer; peak lower by < 1 N", _E),
+    EffectRecord("oil_thermal", "oil temperature state: the viscosity and the oil's (not the gas's or the wall's) "
+                 "bulk modulus follow the heating, the oil expands (volume source in eq. 4.9), the gas heats "
+                 "(ideal gas); output `oil temperature [K]` (the warm-up test's thermocouple); not named by the "
+                 "thesis (it holds T constant, 4.3)",
+                 "Lion & Loose 2002; Seeton 2006; Totten 2000; Gholizadeh et al. 2011", False,
+                 "oil temperature, reserve pressure and compression peak force in the last cycle (damper, warm-up "
+                 "excitation 8 Hz +-10 mm for 10 s, C_th 400 J/K; energy balance C_th dT + hA int(T - T_amb) dt "
+                 "= int F s' dt)",
+                 "> 5 K warmer; reserve pressure up by more than T/T0; compression peak larger", _E),
     EffectRecord("rod_friction_asymmetric", "rod seal friction higher in rebound than in compression",
                  "Olsson et al., EJC 4 (1998), 3.6", False,
                  f"friction force in rebound / compression ({_M13})", "rebound larger, compression smaller", _E),
