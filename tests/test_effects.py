@@ -302,7 +302,7 @@ def test_effect_moves_its_kpi(base, effect):
 def test_state_effects_run_in_the_extended_configuration(base):
     p = pack(_on(base, "active_valve_lag"))
     assert L.variant(L.CFG_MODULE, p) == L.CFG_MODULE_X
-    assert L.N_STATES[L.CFG_MODULE_X] == L.N_STATES[L.CFG_MODULE] + 2
+    assert L.N_STATES[L.CFG_MODULE_X] == L.N_STATES[L.CFG_MODULE] + 3  # lagged flow, oil temperature, free air
     r = simulate(_on(base, "oil_thermal"), _sine(F13), "module")
     assert r.ok and "top mount force [N]" in r.channels
 

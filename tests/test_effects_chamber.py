@@ -157,3 +157,109 @@ def test_thermal_expansion_moves_the_oil_into_the_reserve(base):
     dT = runs[7e-4][1] - base["oil.T"]
     assert dT > 1.0
     assert runs[0.0][0] - runs[7e-4][0] == pytest.approx(7e-4 * V_oil * dT, rel=0.03)
+
+
+# ------------------------------------------------------------ aeration
+def _final_state(design, ex, h_max=1e-3, **values):
+    """Integrate the damper configuration (packed parameters ``values`` set
+    directly, past the design's bounds) and return (final state, last
+    outputs, packed p)."""
+    from dampertwin import simulation as sim
+    from dampertwin.solver import integrate
+    cfg, p = sim._setup(design, ex, "damper", 1.6, None, None, None)
+    p = p.copy()
+    for k, v in values.items():
+        p[L.P[k]] = v
+    t_out = sim._time_grid(ex, None, 500.0)
+    aux = pack_map(design.pq_map.currents, design.pq_map.dps, design.pq_map.flow)
+    kw, rhs = sim._problem("damper", cfg, p[None, :], ex.array(), aux, t_out)
+    out, y, stats = integrate(rhs, p, ex.array(), aux, L.initial_state(p, cfg), t_out, rtol=1e-4, h_max=h_max,
+                              method="rodas4", **kw)
+    assert np.all(np.isfinite(out))
+    return y, out[-1], p
+
+
+def _air_equilibrium(y, out, p):
+    """(V_a, V_eq) at the end of a run: V_eq = V_oil ramp(alpha0 + H (P0 - P)/P_atm)."""
+    from dampertwin.model.aeration import equilibrium_content, free_air
+    V_a, P = y[L.EB_DAMPER + L.EX.V_air], out[L.O.P_C]
+    V_c = p[L.P.A_B] * (p[L.P.L_C0] + out[L.O.S])
+    V_oil = V_c - free_air(V_a, P, p[L.P.P_ATM], p[L.P.AE_N])
+    return V_a, V_oil * equilibrium_content(P, p[L.P.P0], p[L.P.P_ATM], p[L.P.AE_ALPHA0], p[L.P.AE_H])
+
+
+def test_aeration_equilibrium_is_the_boyle_henry_law(base):
+    """At its Henry equilibrium the free air does not move (dV_a/dt = 0) and
+    the chamber modulus is Wood's law of oil and x = alpha_eq(P) (P_atm/P)^(1/n)
+    free air per oil volume; with H = 0 that is the static Boyle law
+    x = alpha0 (P_atm/P)^(1/n)."""
+    from dampertwin.model.aeration import aerated_chamber, equilibrium_content
+    P0, P_atm, K, V_c = 4.0e5, 1.01325e5, 7.0e8, 1.0e-4
+    for H in (0.0, 0.09):
+        for n in (1.0, 1.4):
+            for P in (0.6e5, 2.0e5, 4.0e5, 8.0e5):
+                a_eq = equilibrium_content(P, P0, P_atm, 0.01, H)
+                if H == 0.0:
+                    assert a_eq == 0.01
+                x = a_eq * (P_atm / P) ** (1.0 / n)  # free air volume per oil volume
+                V_a = a_eq * V_c / (1.0 + x)  # its amount at P_atm, at equilibrium
+                K_eff, src, dV_a = aerated_chamber(K, P, V_c, V_a, P0, P_atm, 0.01, n, H, 0.1, 2.0)
+                assert abs(dV_a) < 1e-12 * V_c and abs(src) < 1e-12 * V_c
+                phi = x / (1.0 + x)
+                assert K_eff == pytest.approx(1.0 / ((1.0 - phi) / K + phi / (n * P)), rel=1e-12)
+    # below the precharge the saturated oil gives air off, above it the entrained air dissolves
+    assert equilibrium_content(2e5, P0, P_atm, 0.01, 0.09) > 0.01 > equilibrium_content(4.05e5, P0, P_atm, 0.01, 0.09)
+    assert equilibrium_content(20e5, P0, P_atm, 0.01, 0.09) == 0.0
+
+
+def test_aeration_conserves_the_chamber_volume(base):
+    """Mid-stroke, the air away from its equilibrium (released and
+    dissolving): the oil's volume change (outflow and compression) plus the
+    air's (release and compression) equals the chamber's dV_c/dt."""
+    from dampertwin.model.aeration import free_air
+    d = _on(base, "aeration")
+    for frac, P_c in ((0.3, 1.5e5), (3.0, 9.0e5)):
+        p = pack(d).copy()
+        cfg = L.variant(L.CFG_DAMPER, p)
+        ex = Excitation.sine(0.005, 16.0, 0.25)
+        p[L.P.EX_T0], p[L.P.EX_DT] = ex.t0, ex.dt
+        y = L.initial_state(p, cfg)
+        y[L.S.P_c] = P_c
+        o = L.EB_DAMPER + L.EX.V_air
+        y[o] *= frac
+        dy, out = np.zeros_like(y), np.zeros(L.N_OUT)
+        aux = pack_map(d.pq_map.currents, d.pq_map.dps, d.pq_map.flow)
+        RHS_BY_CFG[cfg](0.13, y, p, ex.array(), aux, dy, out)
+        sd = out[L.O.V]
+        assert abs(sd) > 0.05 and abs(dy[o]) > 0
+        P_res = out[L.O.P_RES]
+        K = moduli(p, y[L.S.P_r], P_c, y[L.S.P_b], P_res, p[L.P.K_OIL], p[L.P.TEMP])[1]
+        n, P_atm = p[L.P.AE_N], p[L.P.P_ATM]
+        V_c = p[L.P.A_B] * (p[L.P.L_C0] + out[L.O.S])
+        V_air = free_air(y[o], P_c, P_atm, n)
+        dP = dy[L.S.P_c]
+        Q_out = -(out[L.O.Q0] - out[L.O.Q1]) + (out[L.O.Q2] - out[L.O.Q3])
+        dV_oil = -Q_out - (V_c - V_air) / K * dP
+        dV_air = (P_atm / P_c) ** (1.0 / n) * dy[o] - V_air / (n * P_c) * dP
+        assert dV_oil + dV_air == pytest.approx(p[L.P.A_B] * sd, rel=1e-9)
+        assert (dy[o] > 0) == (frac < 1.0)  # released below, dissolved above the equilibrium
+
+
+def test_aeration_has_memory(base):
+    """A quasi-static cycle (0.05 Hz) ends with the free air at its Henry
+    equilibrium; a fast one (16 Hz, 2 cycles, ending at the start of a
+    rebound stroke) ends away from it, holding the air the first rebound
+    stroke released (history-dependent stiffness, which a static gas content
+    cannot give). With tau -> 0 the fast cycle ends at the equilibrium too."""
+    d = _on(base, "aeration")
+    y, out, p = _final_state(d, Excitation.sine(0.005, 0.05, 20.0), h_max=0.02)
+    V_slow, eq = _air_equilibrium(y, out, p)
+    assert V_slow == pytest.approx(eq, rel=0.05)  # lag of the dissolution ~ 2 pi f tau_dis of the swing
+    y, out, p = _final_state(d, Excitation.sine(0.005, 16.0, 2 / 16.0))
+    V_fast, eq = _air_equilibrium(y, out, p)
+    # away from the equilibrium at its pressure (the release lags the rebound's low pressure) and above the
+    # quasi-static content (air released in the earlier rebound stroke not yet dissolved)
+    assert abs(V_fast / eq - 1.0) > 0.5 and V_fast > 1.5 * V_slow
+    y, out, p = _final_state(d, Excitation.sine(0.005, 16.0, 2 / 16.0), AE_TREL=1e-5, AE_TDIS=1e-5)
+    V_q, eq = _air_equilibrium(y, out, p)
+    assert V_q == pytest.approx(eq, rel=0.01)

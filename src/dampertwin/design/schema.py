@@ -159,7 +159,7 @@ EFFECTS: dict[str, str] = {
     "top_mount_dynamics": "AutoBushFD dynamic branches, eq. 4.32-4.36 (off: static curve only)",
     "piston_leakage": "laminar leakage past the piston band (left out by the thesis, 4.4)",
     "active_valve_lag": "first-order lag of the active valve's flow behind its static P/Q map (thesis 7.4)",
-    "aeration": "free air entrained in the compression chamber, Boyle's law (thesis 7.4)",
+    "aeration": "free air in the compression chamber, released / dissolved at finite rates (thesis 7.3)",
     "valve_friction_current": "current-dependent Coulomb friction of the active valve's spool (thesis 7.4)",
     "oil_thermal": "oil temperature rising with dissipated power; viscosity, the oil's bulk modulus, oil "
                    "expansion and gas pressure follow it",
@@ -285,6 +285,9 @@ EFFECT_PARAMETERS.update({
     "active_valve_lag.tau": ("s", POS),
     "aeration.alpha0": ("-", Range(0.0, 0.5, True, True)),
     "aeration.n": ("-", Range(1.0, 1.4, True, True)),
+    "aeration.H": ("-", Range(0.0, 0.5, True, True)),
+    "aeration.tau_rel": ("s", POS),
+    "aeration.tau_dis": ("s", POS),
     "valve_friction_current.F0": ("N", NONNEG),
     "valve_friction_current.k_I": ("N/A", NONNEG),
     "valve_friction_current.A_spool": ("m^2", AREA),

@@ -22,7 +22,7 @@ state to a submodel does not touch this file.
 
 The effects the thesis lacks (docs "Effect library") hook in here, each a
 call into its own file that returns its input unchanged when switched off.
-The two with states (active_valve_lag, oil_thermal) run only in the extended
+The three with states (active_valve_lag, oil_thermal, aeration) run only in the extended
 configurations ``rhs_damper_x`` / ``rhs_module_x`` (layout.variant), whose
 effect states follow the damper / module states.
 """
@@ -111,11 +111,13 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
 
     # compliance (eq. 4.13-4.18) and chambers (eq. 4.5-4.12)
     K_r, K_c, K_b = moduli(p, P_r, P_c, P_b, P_res, K_oil, T_oil)
-    K_c = aeration(p, K_c, P_c)
     V_r, V_c = chamber_volumes(s, A_r, A_b, p[P.L_R0], p[P.L_C0])
     dV_r = -A_r * sd
     dV_c = A_b * sd
     dV_b = 0.0
+    if extended:  # aeration: free air in the compression chamber, released / dissolved at finite rates
+        K_c, dV_air = aeration(y, oe + EX.V_air, p, K_c, P_c, V_c, dy)
+        dV_c -= dV_air
     if extended and p[P.E_THERMAL] > 0.5:  # oil_thermal: the oil's expansion as a volume source
         dV_r -= expansion_rate(p[P.TH_BETA], V_r, dT)
         dV_c -= expansion_rate(p[P.TH_BETA], V_c, dT)
