@@ -263,3 +263,27 @@ def test_aeration_has_memory(base):
     y, out, p = _final_state(d, Excitation.sine(0.005, 16.0, 2 / 16.0), AE_TREL=1e-5, AE_TDIS=1e-5)
     V_q, eq = _air_equilibrium(y, out, p)
     assert V_q == pytest.approx(eq, rel=0.01)
+
+
+# ------------------------------------------------------------ rod_friction_asymmetric
+def test_asymmetric_friction_is_not_an_offset(base):
+    """Damper, 13 Hz +-5 mm: the friction the effect adds while the rod
+    slides (|v| > 0.05 m/s) grows with the speed, a s2 |v| in both
+    directions; a constant offset fitted to it (what a precharge or load-cell
+    offset change gives) leaves most of it (a direction-dependent Coulomb
+    level, F_c sign(v) + a F_c, would leave almost nothing)."""
+    f = 13.0
+    ex = Excitation.sine(0.005, f, 2 / f)
+    d = _on(base, "rod_friction_asymmetric")
+    off, on = simulate(base, ex, "damper"), simulate(d, ex, "damper")
+    assert off.ok and on.ok
+    last = off.time >= off.time[-1] - 1 / f
+    v = off["velocity [m/s]"][last]
+    dF = (on["friction force [N]"] - off["friction force [N]"])[last]
+    slide = np.abs(v) > 0.05
+    resid = dF[slide] - dF[slide].mean()  # the least-squares offset is the mean
+    assert np.sqrt(np.mean(resid ** 2)) > 0.3 * np.sqrt(np.mean(dF[slide] ** 2))
+    # the added force follows a s2 |v| (film friction), even in v
+    a, s2 = d["rod_friction_asymmetric.a"], d["constants.s2"]
+    fast = np.abs(v) > 0.8 * np.abs(v).max()
+    np.testing.assert_allclose(dF[fast], a * s2 * np.abs(v[fast]), rtol=0.1, atol=0.5)

@@ -163,7 +163,7 @@ EFFECTS: dict[str, str] = {
     "valve_friction_current": "current-dependent Coulomb friction of the active valve's spool (thesis 7.4)",
     "oil_thermal": "oil temperature rising with dissipated power; viscosity, the oil's bulk modulus, oil "
                    "expansion and gas pressure follow it",
-    "rod_friction_asymmetric": "direction-dependent rod seal friction (rebound vs compression)",
+    "rod_friction_asymmetric": "direction-dependent film friction of the rod seal (rebound vs compression)",
     "top_mount_backlash": "free play of the top mount (smoothed dead zone)",
     "seal_friction_pressure": "rod seal friction growing with the rebound-chamber pressure",
 }
