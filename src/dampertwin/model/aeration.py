@@ -13,8 +13,8 @@ Henry's law for the equilibrium, the oil saturated with air at the precharge
 P0 (it lies under the reserve's gas) and carrying alpha0 entrained free air
 there: V_eq = V_oil ramp(alpha0 + H (P0 - P)/P_atm), H the Bunsen
 coefficient (~0.09 for mineral oil; Gholizadeh, Burton & Schoenau,
-Int. J. Fluid Power 13 (2012) 1-16, review of bulk modulus with entrained
-air; Totten, Handbook of Hydraulic Fluid Technology, 2000, ch. 6). The air
+Int. J. Fluid Power 13 (2012), review of low-pressure bulk modulus models
+with entrained air; Totten, Handbook of Hydraulic Fluid Technology, 2000, ch. 6). The air
 relaxes to it at finite rates, released fast and dissolved slowly
 (Zhou, Vacca & Manhartsgruber, J. Fluids Eng. 135 (2013) 091305):
 dV_a/dt = (V_eq - V_a) / tau, tau = tau_rel if V_eq > V_a else tau_dis

@@ -41,7 +41,7 @@ from .fluid import gas_spring_pressure
 from .inputs import hermite
 from .layout import (BB, CFG_DAMPER, CFG_DAMPER_X, CFG_MODULE, CFG_MODULE_X, CFG_TOPMOUNT, CFG_VALVE, EB_DAMPER,
                      EB_MODULE, EX, O, SB, TB, P, S)
-from .oil_thermal import expansion_rate, gas_temperature_factor, heat, oil_state, oil_temperature, oil_viscosity
+from .oil_thermal import expansion, gas_temperature_factor, heat, oil_state, oil_temperature, oil_viscosity
 from .piston_leakage import leakage
 from .rod import motion, rod_position, stroke
 from .rod_friction import friction
@@ -118,10 +118,11 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     if extended:  # aeration: free air in the compression chamber, released / dissolved at finite rates
         K_c, dV_air = aeration(y, oe + EX.V_air, p, K_c, P_c, V_c, dy)
         dV_c -= dV_air
-    if extended and p[P.E_THERMAL] > 0.5:  # oil_thermal: the oil's expansion as a volume source
-        dV_r -= expansion_rate(p[P.TH_BETA], V_r, dT)
-        dV_c -= expansion_rate(p[P.TH_BETA], V_c, dT)
-        dV_b -= expansion_rate(p[P.TH_BETA], p[P.V_B], dT)
+    if extended:  # oil_thermal: the oil's expansion as a volume source (0 when off)
+        e_r, e_c, e_b = expansion(p, V_r, V_c, p[P.V_B], dT)
+        dV_r -= e_r
+        dV_c -= e_c
+        dV_b -= e_b
     dy[S.P_r] = pressure_rate(K_r, V_r, dV_r, Q_p + Q_bp)
     dy[S.P_c] = pressure_rate(K_c, V_c, dV_c, -Q_p + Q_bv)
     dy[S.P_b] = pressure_rate(K_b, p[P.V_B], dV_b, Q_a - Q_bp)

@@ -12,8 +12,7 @@ C_th dT/dt = F_d s' - hA (T - T_amb)
   Tribology Letters 22 (2006) 67-78);
 - the OIL's bulk modulus only: the isothermal tangent modulus of mineral oil
   falls linearly, K_oil(T) = K_oil0 (1 - c_K (T - T0)) (Totten, Handbook of
-  Hydraulic Fluid Technology, 2000, ch. 3; Gholizadeh, Burton & Schoenau,
-  Int. J. Fluid Power 12 (2011) 5-15). It enters eq. 4.15 in place of K_oil;
+  Hydraulic Fluid Technology, 2000, ch. 3). It enters eq. 4.15 in place of K_oil;
   the wall (eq. 4.17-4.18) and the free gas keep their own laws;
 - the emulsion's free gas: eq. 4.15's factor T/T_ref is taken at T (ideal
   gas at fixed pressure);
@@ -72,6 +71,16 @@ def temperature_rate(P_diss, T, T_amb, C_th, hA):
 def expansion_rate(beta_T, V, dT):
     """Volume growth rate [m^3/s] of the oil filling volume V [m^3] at dT/dt [K/s]."""
     return beta_T * V * dT
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def expansion(p, V_r, V_c, V_b, dT):
+    """Oil volume growth rates [m^3/s] of the rebound, compression and
+    third-tube chambers at dT/dt [K/s] (zeros when off)."""
+    if p[_L.P.E_THERMAL] > 0.5:
+        b = p[_L.P.TH_BETA]
+        return expansion_rate(b, V_r, dT), expansion_rate(b, V_c, dT), expansion_rate(b, V_b, dT)
+    return 0.0, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -178,7 +178,7 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "bulk modulus follow the heating, the oil expands (volume source in eq. 4.9), the gas heats "
                  "(ideal gas); output `oil temperature [K]` (the warm-up test's thermocouple); not named by the "
                  "thesis (it holds T constant, 4.3)",
-                 "Lion & Loose 2002; Seeton 2006; Totten 2000; Gholizadeh et al. 2011", False,
+                 "Lion & Loose 2002; Seeton 2006; Totten 2000", False,
                  "oil temperature, reserve pressure and compression peak force in the last cycle (damper, warm-up "
                  "excitation 8 Hz +-10 mm for 10 s, C_th 400 J/K; energy balance C_th dT + hA int(T - T_amb) dt "
                  "= int F s' dt)",
