@@ -15,8 +15,8 @@ there: V_eq = V_oil ramp(alpha0 + H (P0 - P)/P_atm), H the Bunsen
 coefficient (~0.09 for mineral oil; Gholizadeh, Burton & Schoenau,
 Int. J. Fluid Power 13 (2012), review of low-pressure bulk modulus models
 with entrained air; Totten, Handbook of Hydraulic Fluid Technology, 2000, ch. 6). The air
-relaxes to it at finite rates, released fast and dissolved slowly
-(Zhou, Vacca & Manhartsgruber, J. Fluids Eng. 135 (2013) 091305):
+relaxes to it at finite rates, released faster than dissolved, both far
+slower than vapour cavitation (Gholizadeh et al. 2012):
 dV_a/dt = (V_eq - V_a) / tau, tau = tau_rel if V_eq > V_a else tau_dis
 (continuous at the switch: both branches vanish there).
 Volume balance of the chamber (eq. 4.9 with V_c = V_oil + V_air):

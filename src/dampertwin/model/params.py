@@ -168,7 +168,7 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
     EffectRecord("aeration", "free air in the compression chamber, a state released below and dissolved above "
                  "its Henry equilibrium at finite rates (memory of low-pressure phases; thesis 7.3: aeration of the "
                  "compression chamber in rebound); was a static Boyle law, a re-parameterised gas content",
-                 "Gholizadeh et al., IJFP 13 (2012); Zhou et al., JFE 135 (2013); Duym, VSD 33 (2000)", False,
+                 "Gholizadeh et al., IJFP 13 (2012); Duym, VSD 33 (2000)", False,
                  f"force-velocity phase lag; compression peak force ({_M16})",
                  "phase lag larger; compression peak lower (force builds up later)", _E),
     EffectRecord("valve_friction_current", "current-dependent Coulomb friction of the active valve's spool",
