@@ -254,14 +254,18 @@ def _kpi_thermal(base):
     on = simulate(_on(base, "oil_thermal", **{"oil_thermal.C_th": 400.0}), ex, "damper", current=1.6, rate=2000.0)
     last = off.time > 10.0 - 1.0 / 8.0
     assert on["oil temperature [K]"][-1] > base["oil.T"] + 5.0
-    # warmer, thinner, softer oil: compression peak lower
-    assert on["rod force [N]"][last].min() > off["rod force [N]"][last].min() + 0.3
+    # warmer gas (T/T0) and expanded oil pushed into the reserve: the reserve pressure rises by more than the
+    # gas heating alone, and the gas force with it (compression peak larger)
+    P_on, P_off = on["p reserve [Pa]"][last].mean(), off["p reserve [Pa]"][last].mean()
+    assert P_on / P_off > on["oil temperature [K]"][last].mean() / base["oil.T"]
+    assert on["rod force [N]"][last].min() < off["rod force [N]"][last].min() - 1.0
 
 
 def _kpi_asymmetric(base):
     off, on, *_ = _pair(base, "rod_friction_asymmetric", F13)
-    assert on["mu_max"] > off["mu_max"] * 1.1  # rebound friction (1 + a)
-    assert on["mu_min"] > off["mu_min"] * 0.9  # compression friction (1 - a), negative: smaller magnitude
+    dmu = 0.5 * base["rod_friction_asymmetric.a"] * base["constants.s2"] * 2 * np.pi * F13 * 0.005  # a s2 |v|max / 2
+    assert on["mu_max"] > off["mu_max"] + dmu  # rebound film friction (1 + a) s2
+    assert on["mu_min"] > off["mu_min"] + dmu  # compression (1 - a) s2, negative: smaller magnitude
 
 
 def _kpi_seal(base):
@@ -300,7 +304,7 @@ def test_state_effects_run_in_the_extended_configuration(base):
     p = pack(_on(base, "active_valve_lag"))
     assert L.variant(L.CFG_MODULE, p) == L.CFG_MODULE_X
     assert L.variant(L.CFG_MODULE, pack(_on(base, "valve_friction_current"))) == L.CFG_MODULE_X
-    assert L.N_STATES[L.CFG_MODULE_X] == L.N_STATES[L.CFG_MODULE] + 3  # opening lag, spool, oil temperature
+    assert L.N_STATES[L.CFG_MODULE_X] == L.N_STATES[L.CFG_MODULE] + 4  # opening lag, spool, oil temperature, free air
     r = simulate(_on(base, "oil_thermal"), _sine(F13), "module")
     assert r.ok and "top mount force [N]" in r.channels
 

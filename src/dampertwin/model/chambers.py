@@ -74,23 +74,25 @@ def rod_force(P_r, P_c, A_r, A_b, P_atm, F_mu):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def oil_modulus(pressure, p):
-    """Emulsion modulus (eq. 4.14-4.16) at absolute pressure [Pa], or K_oil
-    when the gas-content effect is off."""
+def oil_modulus(pressure, p, K_oil, T):
+    """Emulsion modulus (eq. 4.14-4.16) at absolute pressure [Pa] for the
+    gas-free oil's modulus K_oil [Pa] and the temperature T [K] (p[P.K_OIL],
+    p[P.TEMP] unless oil_thermal), or K_oil when the gas-content effect is off."""
     if p[_L.P.E_GAS] > 0.5:
-        return emulsion_bulk_modulus(pressure, p[_L.P.K_OIL], p[_L.P.CHI], p[_L.P.P_SAT], p[_L.P.P_VAP],
-                                     p[_L.P.P_REF], p[_L.P.TEMP], p[_L.P.T_REF], p[_L.P.GAMMA])
-    return p[_L.P.K_OIL]
+        return emulsion_bulk_modulus(pressure, K_oil, p[_L.P.CHI], p[_L.P.P_SAT], p[_L.P.P_VAP],
+                                     p[_L.P.P_REF], T, p[_L.P.T_REF], p[_L.P.GAMMA])
+    return K_oil
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def moduli(p, P_r, P_c, P_b, P_res):
+def moduli(p, P_r, P_c, P_b, P_res, K_oil, T):
     """Effective moduli [Pa] of the rebound, compression and third-tube
-    chambers: oil / emulsion, in series with the walls (eq. 4.13, 4.17-4.18),
-    times the cavitation factor."""
-    K_r = oil_modulus(P_r, p)
-    K_c = oil_modulus(P_c, p)
-    K_b = oil_modulus(P_b, p)
+    chambers: oil / emulsion (gas-free oil modulus K_oil [Pa], temperature
+    T [K]), in series with the walls (eq. 4.13, 4.17-4.18), times the
+    cavitation factor."""
+    K_r = oil_modulus(P_r, p, K_oil, T)
+    K_c = oil_modulus(P_c, p, K_oil, T)
+    K_b = oil_modulus(P_b, p, K_oil, T)
     if p[_L.P.E_WALL] > 0.5:
         K_c = series_bulk_modulus(K_c, wall_bulk_modulus(p[_L.P.PSI_PT], P_c - P_res, 1.0))
         K_b = series_bulk_modulus(K_b, wall_bulk_modulus(p[_L.P.PSI_TT], P_b - P_res, p[_L.P.RATIO_TT]))

@@ -22,8 +22,8 @@ state to a submodel does not touch this file.
 
 The effects the thesis lacks (docs "Effect library") hook in here, each a
 call into its own file that returns its input unchanged when switched off.
-The three with states (active_valve_lag, valve_friction_current, oil_thermal) run only in the extended
-configurations ``rhs_damper_x`` / ``rhs_module_x`` (layout.variant), whose
+The four with states (active_valve_lag, valve_friction_current, oil_thermal, aeration) run only
+in the extended configurations ``rhs_damper_x`` / ``rhs_module_x`` (layout.variant), whose
 effect states follow the damper / module states.
 """
 
@@ -41,7 +41,7 @@ from .fluid import gas_spring_pressure
 from .inputs import hermite
 from .layout import (BB, CFG_DAMPER, CFG_DAMPER_X, CFG_MODULE, CFG_MODULE_X, CFG_TOPMOUNT, CFG_VALVE, EB_DAMPER,
                      EB_MODULE, EX, O, SB, TB, P, S)
-from .oil_thermal import heat, oil_temperature, oil_viscosity, thermal_moduli
+from .oil_thermal import expansion, gas_temperature_factor, heat, oil_state, oil_temperature, oil_viscosity
 from .piston_leakage import leakage
 from .rod import motion, rod_position, stroke
 from .rod_friction import friction
@@ -75,8 +75,13 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     P_r = y[S.P_r]
     P_c = y[S.P_c]
     P_b = y[S.P_b]
-    P_res = gas_spring_pressure(p[P.P0], p[P.V_G0], y[S.V_g], p[P.GAMMA])
     oe = EB_MODULE if module else EB_DAMPER  # effect states (extended configurations)
+    P_res = gas_spring_pressure(p[P.P0], p[P.V_G0], y[S.V_g], p[P.GAMMA])
+    K_oil = p[P.K_OIL]
+    T_oil = p[P.TEMP]
+    if extended:  # oil_thermal: the reserve gas at the oil temperature, the oil's modulus at it
+        P_res *= gas_temperature_factor(y, oe + EX.T_oil, p)
+        K_oil, T_oil = oil_state(y, oe + EX.T_oil, p)
 
     # oil viscosity, at the oil temperature with the effect oil_thermal
     nu = p[P.NU]
@@ -101,24 +106,31 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
         p_o = opening_pressure(y, oe + EX.p_open, p, p_o, dy)
         Q_a = opening_flow(p, aux, p_o, dp_a, Q_a)
 
-    # compliance (eq. 4.13-4.18) and chambers (eq. 4.5-4.12)
-    K_r, K_c, K_b = moduli(p, P_r, P_c, P_b, P_res)
-    K_c = aeration(p, K_c, P_c)
+    # rod friction (eq. 4.38-4.41) and rod force (eq. 4.1); oil_thermal heats with F_d s'
+    F_mu = friction(y, SB.rod_friction, p, sd, dy, P_r)
+    F_d = rod_force(P_r, P_c, A_r, A_b, p[P.P_ATM], F_mu)
+    dT = 0.0
     if extended:
-        K_r, K_c, K_b = thermal_moduli(y, oe + EX.T_oil, p, K_r, K_c, K_b)
+        dT = heat(y, oe + EX.T_oil, p, F_d * sd, dy)  # dissipated power F_d s' [W]
+
+    # compliance (eq. 4.13-4.18) and chambers (eq. 4.5-4.12)
+    K_r, K_c, K_b = moduli(p, P_r, P_c, P_b, P_res, K_oil, T_oil)
     V_r, V_c = chamber_volumes(s, A_r, A_b, p[P.L_R0], p[P.L_C0])
     dV_r = -A_r * sd
     dV_c = A_b * sd
+    dV_b = 0.0
+    if extended:  # aeration: free air in the compression chamber, released / dissolved at finite rates
+        K_c, dV_air = aeration(y, oe + EX.V_air, p, K_c, P_c, V_c, dy)
+        dV_c -= dV_air
+    if extended:  # oil_thermal: the oil's expansion as a volume source (0 when off)
+        e_r, e_c, e_b = expansion(p, V_r, V_c, p[P.V_B], dT)
+        dV_r -= e_r
+        dV_c -= e_c
+        dV_b -= e_b
     dy[S.P_r] = pressure_rate(K_r, V_r, dV_r, Q_p + Q_bp)
     dy[S.P_c] = pressure_rate(K_c, V_c, dV_c, -Q_p + Q_bv)
-    dy[S.P_b] = pressure_rate(K_b, p[P.V_B], 0.0, Q_a - Q_bp)
+    dy[S.P_b] = pressure_rate(K_b, p[P.V_B], dV_b, Q_a - Q_bp)
     dy[S.V_g] = -(Q_bv + Q_a)  # reserve gas (THESIS-ERRATA 8)
-
-    # rod friction (eq. 4.38-4.41) and rod force (eq. 4.1)
-    F_mu = friction(y, SB.rod_friction, p, sd, dy, P_r)
-    F_d = rod_force(P_r, P_c, A_r, A_b, p[P.P_ATM], F_mu)
-    if extended:
-        heat(y, oe + EX.T_oil, p, F_d * sd, dy)  # dissipated power F_d s' [W]
 
     F_tm = 0.0
     a_rod = 0.0

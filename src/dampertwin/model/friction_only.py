@@ -5,9 +5,13 @@ velocity, as on a friction test device (no damper, no hydraulics).
 Two effects of the library apply on request (both off by default; off is
 bit-identical to the plain law):
 
-- asymmetric friction (``rod_friction_asymmetric``): the Coulomb and static
-  levels scaled by f(v) = 1 + a tanh(v / v_reg) (Olsson et al., Eur. J.
-  Control 4 (1998) 176-195, sec. 3.6), :func:`~.rod_friction_asymmetric.direction_factor`;
+- asymmetric friction: the Coulomb and static levels scaled by
+  f(v) = 1 + a tanh(v / v_reg) (Olsson et al., Eur. J. Control 4 (1998)
+  176-195, sec. 3.6), :func:`~.rod_friction_asymmetric.direction_factor`.
+  On the friction device (no gas force, no precharge) a direction-dependent
+  Coulomb level is measurable; in the damper it is an offset, so the
+  library's ``rod_friction_asymmetric`` scales the film (velocity-dependent)
+  parts instead;
 - free play (the dead-zone backlash of ``top_mount_backlash``, Nordin &
   Gutman, Automatica 38 (2002) 1633-1649, eq. 2) in series with the bristles:
   the elastic force is k_b D(z), D(z) = z - delta sign(z) for |z| > delta,

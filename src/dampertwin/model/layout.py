@@ -41,7 +41,7 @@ CONFIGURATIONS = {"valve": CFG_VALVE, "damper": CFG_DAMPER, "module": CFG_MODULE
 CFG_DAMPER_X, CFG_MODULE_X = 5, 6
 EXTENDED = {CFG_DAMPER: CFG_DAMPER_X, CFG_MODULE: CFG_MODULE_X}
 BASE_CONFIGURATION = {CFG_DAMPER_X: CFG_DAMPER, CFG_MODULE_X: CFG_MODULE}
-STATE_EFFECTS = ("E_AV_LAG", "E_VALVE_FRICTION", "E_THERMAL")  # switches of the effects with states
+STATE_EFFECTS = ("E_AV_LAG", "E_VALVE_FRICTION", "E_THERMAL", "E_AERATION")  # switches of the effects with states
 
 # A configuration is a sequence of state blocks, one per submodel instance;
 # each submodel reads and writes its own states at its block's offset.
@@ -53,7 +53,7 @@ _DAMPER_BLOCKS = (
 _MODULE_BLOCKS = _DAMPER_BLOCKS + (("rod", rod.STATES), ("top_mount", top_mount.STATES))
 _BENCH_BLOCKS = (("bench", bench.STATES), ("valve", bench.VALVE_STATES))
 _TOPMOUNT_BLOCKS = (("top_mount", top_mount.STATES),)
-_EFFECT_STATES = active_valve_lag.STATES + valve_friction_current.STATES + oil_thermal.STATES
+_EFFECT_STATES = active_valve_lag.STATES + valve_friction_current.STATES + oil_thermal.STATES + aeration.STATES
 _EFFECT_BLOCKS = (("effects", _EFFECT_STATES),)
 
 

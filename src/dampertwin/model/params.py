@@ -174,7 +174,10 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "Savaresi et al. 2010, ch. 2", False,
                  f"third-tube peak pressure; compression peak force ({_M16})",
                  "higher (the valve opens late: the pressure overshoots)", _E),
-    EffectRecord("aeration", "free air in the compression chamber (Boyle)", "Duym, VSD 33 (2000)", False,
+    EffectRecord("aeration", "free air in the compression chamber, a state released below and dissolved above "
+                 "its Henry equilibrium at finite rates (memory of low-pressure phases; thesis 7.3: aeration of the "
+                 "compression chamber in rebound); was a static Boyle law, a re-parameterised gas content",
+                 "Gholizadeh et al., IJFP 13 (2012); Duym, VSD 33 (2000)", False,
                  f"force-velocity phase lag; compression peak force ({_M16})",
                  "phase lag larger; compression peak lower (force builds up later)", _E),
     EffectRecord("valve_friction_current", "Coulomb friction of the active valve's spool with memory (a stuck "
@@ -182,15 +185,22 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "growing or shrinking; thesis 7.3, third discrepancy (valve friction at the end of rebound)",
                  "Al-Bender et al. 2005 (Maxwell slip); Manring 2005, 4.6", False,
                  f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E),
-    EffectRecord("oil_thermal", "oil temperature state: viscosity and bulk modulus follow the heating; "
-                 "output `oil temperature [K]` (the warm-up test's thermocouple)",
+    EffectRecord("oil_thermal", "oil temperature state: the viscosity and the oil's (not the gas's or the wall's) "
+                 "bulk modulus follow the heating, the oil expands (volume source in eq. 4.9), the gas heats "
+                 "(ideal gas); output `oil temperature [K]` (the warm-up test's thermocouple); not named by the "
+                 "thesis (it holds T constant, 4.3)",
                  "Lion & Loose 2002; Seeton 2006; Totten 2000", False,
-                 "oil temperature and compression peak force in the last cycle (damper, warm-up excitation 8 Hz "
-                 "+-10 mm for 10 s, C_th 400 J/K; energy balance C_th dT + hA int(T - T_amb) dt = int F s' dt)",
-                 "> 5 K warmer; peak lower by < 1 N", _E),
-    EffectRecord("rod_friction_asymmetric", "rod seal friction higher in rebound than in compression",
-                 "Olsson et al., EJC 4 (1998), 3.6", False,
-                 f"friction force in rebound / compression ({_M13})", "rebound larger, compression smaller", _E),
+                 "oil temperature, reserve pressure and compression peak force in the last cycle (damper, warm-up "
+                 "excitation 8 Hz +-10 mm for 10 s, C_th 400 J/K; energy balance C_th dT + hA int(T - T_amb) dt "
+                 "= int F s' dt)",
+                 "> 5 K warmer; reserve pressure up by more than T/T0; compression peak larger", _E),
+    EffectRecord("rod_friction_asymmetric", "rod seal film friction (Stribeck excess and viscous part) higher in "
+                 "rebound than in compression; reformulated: a direction-dependent Coulomb level is, while the rod "
+                 "slides, a constant offset a F_c (degenerate with the precharge / load-cell offset), the film "
+                 "part adds a s2 |v|, growing with the speed; not named by the thesis",
+                 "Mueller & Nau 1998, ch. 9; Olsson et al., EJC 4 (1998), 3.6", False,
+                 f"friction force at the peak speeds in rebound / compression ({_M13})",
+                 "rebound larger, compression smaller, by ~a s2 |v| (no offset fits it)", _E),
     EffectRecord("top_mount_backlash", "free play of the top mount (smoothed dead zone)",
                  "Nordin & Gutman, Automatica 38 (2002)", False,
                  "top-mount force near zero deflection (top-mount sine 10 Hz +-1 mm)", "lower", _E),

@@ -12,7 +12,7 @@ from numba import njit
 
 from .declarations import Parameter, State, index_enum
 from .numerics import power
-from .rod_friction_asymmetric import direction_factor
+from .rod_friction_asymmetric import film_levels
 from .seal_friction_pressure import pressure_friction
 
 PARAMETERS = (
@@ -52,20 +52,20 @@ def friction(y, o, p, dv, dy, P_r):
     """The rod-friction submodel in the assembled model: friction force [N]
     at extension rate dv [m/s] and rebound pressure P_r [Pa]; writes its
     state rates into dy[o + Z.*] (o: where the configuration placed this
-    submodel's states). The effects rod_friction_asymmetric and
-    seal_friction_pressure scale / raise the levels F_c, F_s of eq. 4.41."""
+    submodel's states). The effect rod_friction_asymmetric scales the
+    velocity-dependent parts (F_s - F_c, s2) by direction,
+    seal_friction_pressure raises the levels F_c, F_s of eq. 4.41."""
     if p[_L.P.E_ROD_FRICTION] > 0.5:
         F_c = p[_L.P.FR_FC]
         F_s = p[_L.P.FR_FS]
+        s2 = p[_L.P.FR_S2]
         if p[_L.P.E_RF_ASYM] > 0.5:
-            f = direction_factor(p[_L.P.RFA_A], dv, p[_L.P.RFA_VREG])
-            F_c *= f
-            F_s *= f
+            F_s, s2 = film_levels(p[_L.P.RFA_A], dv, p[_L.P.RFA_VREG], F_c, F_s, s2)
         if p[_L.P.E_SEAL_P] > 0.5:
             dF = pressure_friction(p[_L.P.SFP_KP], P_r, p[_L.P.P_ATM], p[_L.P.SFP_PREG])
             F_c += dF
             F_s += dF
-        dz, F = lugre(y[o + Z.z], dv, p[_L.P.FR_KB], F_c, F_s, p[_L.P.FR_S2],
+        dz, F = lugre(y[o + Z.z], dv, p[_L.P.FR_KB], F_c, F_s, s2,
                       p[_L.P.FR_CCOMP], p[_L.P.FR_VD], p[_L.P.FR_AS], p[_L.P.FR_ALPHAS])
         dy[o + Z.z] = dz
         return F
