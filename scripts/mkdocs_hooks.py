@@ -182,8 +182,10 @@ def validation_recovery() -> str:
 
 def validation_discrepancy() -> str:
     d = ROOT / "results" / "discrepancy"
-    return "\n".join(["Generated from the committed `results/discrepancy/report.md`.", "",
-                      (d / "report.md").read_text().strip()])
+    text = "\n".join(line for line in (d / "report.md").read_text().strip().splitlines()
+                     if not line.startswith("!["))  # its figures: results/discrepancy/plots/
+    return "\n".join(["Generated from the committed `results/discrepancy/report.md` (its figures are in "
+                      "`results/discrepancy/plots/`).", "", text])
 
 
 def effects_table() -> str:

@@ -5,12 +5,16 @@ baseline_1.6.yaml, written by assemble) and the measured folder (params.yaml
 plots/). The profile (params.yaml `profile`) sets the workflow's budget
 (conf/discrepancy.yaml); the seed is conf/config.yaml `seed`."""
 
+import os
+
 from _common import OUT, ROOT, config, measured_dir, params, stage
 from dampertwin.discrepancy.entry import main as discrepancy
 
 
 def main() -> None:
-    doc = discrepancy(str(OUT / "designs" / "baseline_1.6.yaml"), str(measured_dir()), str(ROOT / "results" / "discrepancy"),
+    os.chdir(ROOT)  # paths relative to the repository: the report names no machine's folders (same bytes anywhere)
+    rel = lambda p: os.path.relpath(p, ROOT)  # noqa: E731
+    doc = discrepancy(rel(OUT / "designs" / "baseline_1.6.yaml"), rel(measured_dir()), rel(ROOT / "results" / "discrepancy"),
                       profile=params()["profile"], seed=int(config().seed))
     print(f"discrepancy: verdict {doc['verdict']} {', '.join(doc['effects'])}; held-out gap "
           f"{doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g}")
