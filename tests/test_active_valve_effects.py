@@ -16,30 +16,15 @@ import pytest
 import yaml
 from scipy.integrate import solve_ivp
 
-from dampertwin import Excitation, simulate
-from dampertwin.design import load, loads
+from dampertwin import simulate
+from dampertwin.design import loads
 from dampertwin.model.active_valve import active_valve_flow
 from dampertwin.model.valve_friction_current import dead_zone, friction_force, spool_rate
 
 from conftest import BASELINE
+from test_effects import _on, _sine, base  # noqa: F401 (base: the module-scoped baseline fixture)
 
 F16 = 16.0
-
-
-@pytest.fixture(scope="module")
-def base():
-    return load(BASELINE)
-
-
-def _sine(f, cycles=2, amplitude=0.005):
-    return Excitation.sine(duration=cycles / f, amplitude=amplitude, frequency=f)
-
-
-def _on(design, effect, **extra):
-    ov = {e.key: e.typical for e in design.effect_parameters(effect)}
-    ov.update(extra)
-    ov[f"effects.{effect}"] = True
-    return design.with_overrides(ov)
 
 
 def _valve(r):
