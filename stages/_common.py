@@ -159,7 +159,7 @@ def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dic
     """A fit's outputs: overlay (fitted design values as design overrides;
     fitted ``sensor.*`` nuisance values go to the metrics, not the design),
     GA history (Parquet), metrics (objective at the start, GA best, after
-    polish; failures) and the identifiability / uncertainty report
+    polish; failures; the values that end on a search bound) and the identifiability / uncertainty report
     (uncertainty.json, uncertainty.md)."""
     from dampertwin.io import write_frame
 
@@ -181,6 +181,8 @@ def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dic
                                       **({"failure_reasons": res.failures} if res.failures else {}),
                                       "nuisance": {k: v for k, v in best.items() if k.startswith("sensor.")},
                                       "polish": res.polish, "undetermined": unc.get("undetermined"),
+                                      "bounds": {s.key: [s.lo, s.hi, s.scale] for s in res.specs},
+                                      "bound_hits": res.bound_hits,
                                       **(extra or {})})
     write_json(out / "uncertainty.json", {**unc, "objective": meta.get("objective")})
     write_text(out / "uncertainty.md", (md or "No uncertainty analysis (no polish configured).")

@@ -53,7 +53,7 @@ def main() -> None:
             "improvement_pct": 100 * (1 - res.best_objective / res.start_objective),
             "group_objectives_best": res.best_group_objectives, "best_evaluation": res.best_evaluation,
             "evaluations": res.evaluations, "failed_simulations": res.failed, "failure_reasons": res.failures,
-            "values": res.best})
+            "values": res.best, "bound_hits": res.bound_hits})
         fig = progress_figure(res.history, res.groups, f"Concurrent GAs, profile {cfg.profile.name} (thesis fig. 7.7)")
         fig.savefig(tmp / "progress.png", dpi=100)
         plt.close(fig)

@@ -7,6 +7,8 @@ and a side-by-side table approach 1 vs approach 2 on the same lab data.
 Outputs results/approach2/: table_7_1.*, table_7_2.*, verification.md,
 side_by_side.md, metrics.json, plots/*.png."""
 
+import json
+
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
@@ -15,6 +17,7 @@ from _approach2 import CURRENTS, OUT2
 from _common import CONF, config, config_hash, measured_dir, stage, write_json, write_text
 from dampertwin import kpi
 from dampertwin.calibration.approach2 import force_agreement
+from dampertwin.calibration.ga import NEAR_BOUND
 from dampertwin.design import yaml_load
 from dampertwin.io import read_frame, read_record, runs, write_frame
 from dampertwin.protocols import load_protocol
@@ -124,12 +127,26 @@ def main() -> None:
                f"(profile {cfg.profile.name}; {source}); lower is better\n\n" + kpi.to_markdown(side, 3)
                + "\nPer-approach tables 7.1 / 7.2:\n\n" + "".join(
                    f"### {ap}\n\n" + md(tables[ap][0]) + "\n" + md(tables[ap][1]) + "\n"
-                   for ap in APPROACHES))
+                   for ap in APPROACHES) + bound_section(OUT2 / "fit" / "metrics.json"))
     for _, r in side.iterrows():
         metrics[r["approach"]] = {k: float(v) for k, v in r.items() if k != "approach"}
+    metrics["bound_hits"] = json.loads((OUT2 / "fit" / "metrics.json").read_text()).get("bound_hits", [])
     metrics["flags"] = {"count": len(flags71) + len(flags72), "thresholds": {k: float(v) for k, v in fl.items()},
                         "cells": flags71 + flags72}
     write_json(OUT2 / "metrics.json", metrics)
+
+
+def bound_section(path) -> str:
+    """Markdown: the approach-2 values that end on a search bound (or that none does)."""
+    hits = json.loads(path.read_text()).get("bound_hits", [])
+    if not hits:
+        return "\nNo approach-2 value ends on its search bound.\n"
+    rows = pd.DataFrame([{"parameter": h["parameter"], "value": h["value"], "bound": h["bound"], "limit": h["limit"]}
+                         for h in hits])
+    return ("\n### Approach-2 values on a search bound\n\nThe optimum may lie beyond the interval, or the "
+            f"parameter stands in for an effect the model lacks (within {NEAR_BOUND:.0%} of the interval, in its "
+            "own scale).\n\n"
+            + kpi.to_markdown(rows, 4))
 
 
 if __name__ == "__main__":

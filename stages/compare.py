@@ -117,6 +117,7 @@ def fit_summary(cfg) -> dict:
                               "evaluations": m["evaluations"],
                               "uncertainty": summary(u) if u.get("parameters") else None,
                               "nuisance": m.get("nuisance", {}), "undetermined": m.get("undetermined"),
+                              "bounds": m.get("bounds", {}), "bound_hits": m.get("bound_hits", []),
                               **({"determined": m["determined"]} if m.get("determined") else {})}
     return fits
 

@@ -133,6 +133,13 @@ def test_every_fit_beats_the_uncalibrated_design(ci_study):
     for name, f in fits["fits"].items():
         assert f["objective_best"] < f["objective_start"], name
         assert f["objective_polished"] <= f["objective_ga"] * (1 + 1e-12), name  # the polish never loses
+        # every fitted value lies in its search interval, and a value on an end of it is listed
+        for h in f["bound_hits"]:
+            assert h["limit"] == f["bounds"][h["parameter"]][0 if h["bound"] == "lower" else 1], (name, h)
+        for k, (lo, hi, _) in f["bounds"].items():
+            v = f["values"].get(k, f["nuisance"].get(k))
+            assert lo <= v <= hi, (name, k)
+            assert (v in (lo, hi)) <= any(h["parameter"] == k for h in f["bound_hits"]), (name, k)
 
 
 @pytest.mark.slow  # runs the ci-profile pipeline (minutes)

@@ -105,7 +105,7 @@ def test_study_report_flags_and_html(tmp_path):
     import shutil
 
     from conftest import ROOT
-    from dampertwin.study_report import build_report
+    from dampertwin.study_report import _flag_rows, build_report
 
     src = ROOT / "results" / "approach1"
     for f in ("table_6_5.parquet", "table_6_6.parquet", "fits.json", "metrics.json"):
@@ -120,6 +120,8 @@ def test_study_report_flags_and_html(tmp_path):
     fits["fits"][name]["determined"] = {"quantity": "valve lift-force curve F_k(x), eq. 4.19",
                                         "curve": [{"lift [m]": 1e-4, "force [N]": 512.0, "ci95 low [N]": 500.0,
                                                    "ci95 high [N]": 524.0, "rel. half-width [%]": 2.34}]}
+    fits["fits"][name]["bound_hits"] = [{"parameter": key, "bound": "upper", "value": 2.0, "limit": 2.0,
+                                         "kind": "search"}]
     (tmp_path / "fits.json").write_text(json.dumps(fits))
     # cells well beyond, just beyond and just inside the flag threshold, whatever the committed study says
     t65 = pd.read_parquet(tmp_path / "table_6_5.parquet")
@@ -139,17 +141,24 @@ def test_study_report_flags_and_html(tmp_path):
     n = len(fits["fits"][name]["values"])
     assert "## Flags" in text
     flags = text.split("## Flags")[1].split("\n## ")[0]
-    assert f"| {name} | 1 of {n} parameters not determined | {key.split('.')[-1]}" in flags
-    assert len(flags.splitlines()) < 40  # a short table, not a wall of text
+    fam = name.split("/")[0]
+    assert re.search(rf"\| {fam} \(\d+ fits?\) \| parameters not determined \| [^|]*\b{key.split('.')[-1]}\b", flags)
+    assert f"| {name} | ends on a search bound | {key.split('.')[-1]} = 2 at its upper bound 2:" in flags
+    assert f"1 of {n} parameters" not in flags  # one row per fit family, not one per fit
+    assert len(flags.splitlines()) < 20  # a short table, not a wall of text
     det = text.split("## What the data determine")[1].split("\n## ")[0]
     assert f"### {name}: valve lift-force curve" in det and "| 0.1 | 512 | [500, 524] | 2.34 |" in det
     # every table-6.5 cell beyond the threshold compare used is flagged, and no other (the layout has
-    # max and min per half-cycle since issue 14)
+    # max and min per half-cycle since issue 14); the flag table has one row for them with the worst cell
+    _, row_flags = _flag_rows(t65, cols, lim, "%")
     for _, r in t65.iterrows():
         where = f"{r['Design case']}, {float(r['Active valve current [A]']):g} A"
-        row = next((ln for ln in flags.splitlines() if ln.startswith(f"| {where} | abs. diff >")), "")
+        row = next((f["detail"] for f in row_flags if f["where"] == where), "")
         for c in cols:
             assert (f"{c} {float(r[c]):+.2f}" in row) == (abs(float(r[c])) > lim), (r, c)
+    worst = max(((abs(float(r[c])), f"{r['Design case']}, {float(r['Active valve current [A]']):g} A, {c} "
+                  f"{float(r[c]):+.2f}") for _, r in t65.iterrows() for c in cols))[1]
+    assert f"| table 6.5 | {len(row_flags)} of {len(t65)} cases abs. diff > {lim:g} % | worst: {worst};" in flags
     assert "![baseline_1.6 monosine](plots/baseline_1.6/monosine.png)" in text
     h = html.read_text()
     assert "<table>" in h

@@ -264,8 +264,6 @@ def _report(problem: _Problem, res, specs, ci: dict, out, submodel: str, setting
             fixed_overrides: dict | None = None) -> dict:
     """fit.json of a GA fit: parameters, objective, intervals, NRMSE per
     file, parameters on a search bound (``bound_hits`` / ``flags``)."""
-    from .calibration.friction_fit import bound_hits
-
     sims = problem.simulate([dict(res.best)])
     files = {}
     for fi, (path, cases) in enumerate(problem.files):
@@ -273,8 +271,7 @@ def _report(problem: _Problem, res, specs, ci: dict, out, submodel: str, setting
         sim = np.concatenate([s[0] for s in sims[fi]])
         files[str(path)] = {"role": "fitted" if fi == 0 else "predicted", "nrmse": nrmse(meas, sim),
                             "sha256": _sha(Path(path)), "records": len(cases), "samples": len(meas)}
-    genes = np.array([s.to_gene(res.best[s.key]) for s in specs])
-    hits = bound_hits(specs, genes, ["user"] * len(specs))
+    hits = res.bound_hits
     meta = dict(extra_meta)
     obj_name = meta.pop("objective_name", "int |measured - simulated| dt")
     result = {"submodel": submodel, **meta,

@@ -44,7 +44,7 @@ def _md_table(df: pd.DataFrame) -> str:
     cols = list(df.columns)
     lines = ["| " + " | ".join(map(str, cols)) + " |", "|" + "---|" * len(cols)]
     for _, r in df.iterrows():
-        lines.append("| " + " | ".join(_fmt(r[c]) for c in cols) + " |")
+        lines.append("| " + " | ".join(_fmt(r[c]).replace("|", "\\|") for c in cols) + " |")  # a cell's | is text
     return "\n".join(lines)
 
 
@@ -61,8 +61,10 @@ def _flag_rows(t: pd.DataFrame, cols: list[str], limit: float, unit: str) -> tup
             where = str(r.get("Design case", r.iloc[1]))
             cur = next((r[c] for c in t.columns if str(c).startswith("Active valve current")), None)
             where += "" if cur is None else f", {float(cur):g} A"
+            worst = max(bad, key=lambda c: abs(float(r[c])))
             flags.append({"where": where, "flag": f"abs. diff > {limit:g} {unit}",
-                          "detail": ", ".join(f"{c} {float(r[c]):+.2f}" for c in bad)})
+                          "detail": ", ".join(f"{c} {float(r[c]):+.2f}" for c in bad),
+                          "worst": f"{where}, {worst} {float(r[worst]):+.2f}", "worst_abs": abs(float(r[worst]))})
     t["flag"] = mark
     return t, flags
 
@@ -80,12 +82,20 @@ def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[dict]]:
                           "detail": f"{f['failed_simulations']} during the GA"})
         if f.get("objective_best", 0) >= f.get("objective_start", math.inf):
             flags.append({"where": name, "flag": "objective not lowered", "detail": ""})
+        hits = f.get("bound_hits") or []
+        if hits:
+            flags.append({"where": name, "flag": "ends on a search bound",
+                          "detail": "; ".join(f"{h['parameter'].split('.')[-1]} = {h['value']:.4g} at its {h['bound']} "
+                                              f"bound {h['limit']:.4g}" for h in hits)
+                          + ": the optimum may lie beyond it, or the parameter stands in for a missing effect"})
         bad = [k for k, u in unc.items() if k in f.get("values", {}) and not u["determined"]]
         if bad:
             det = (f.get("determined") or {}).get("quantity")
             flags.append({"where": name, "flag": f"{len(bad)} of {len(f.get('values', {}))} parameters not determined",
                           "detail": ", ".join(k.split(".")[-1] for k in bad)
-                          + (f"; determined: {det.split(' (')[0].split(',')[0]} (below)" if det else "")})
+                          + (f"; determined: {det.split(' (')[0].split(',')[0]} (below)" if det else ""),
+                          "undetermined": [k.split(".")[-1] for k in bad],
+                          "determined": det.split(" (")[0].split(",")[0] if det else None})
         for key, value in f.get("values", {}).items():
             u = unc.get(key)
             rows.append({"fit": name, "parameter": key, "value": value,
@@ -93,6 +103,39 @@ def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[dict]]:
                          "rel. half-width [%]": None if u is None else 100 * u["rel_halfwidth"],
                          "determined": "-" if u is None else ("yes" if u["determined"] else f"**no** ({u['why']})")})
     return pd.DataFrame(rows), flags
+
+
+def short_flags(kpi_flags: dict[str, tuple[list[dict], int]], fit_flags: list[dict]) -> list[dict]:
+    """The report's flags as a short table: one row per KPI table (cases
+    beyond the threshold, the worst cell), one per fit family for the
+    parameters its records cannot determine (what they determine instead),
+    and one per fit for what needs a look (failures, no improvement, a value
+    on a search bound). ``kpi_flags``: table name -> (its row flags, rows)."""
+    out = []
+    for table, (flags, n) in kpi_flags.items():
+        if flags:
+            w = max(flags, key=lambda f: f["worst_abs"])
+            out.append({"where": table, "flag": f"{len(flags)} of {n} cases {flags[0]['flag']}",
+                        "detail": f"worst: {w['worst']}; the rows are marked in the table"})
+    families: dict[str, list[dict]] = {}
+    for f in fit_flags:
+        if "undetermined" in f:
+            families.setdefault(f["where"].split("/")[0], []).append(f)
+        else:
+            out.append({k: f[k] for k in ("where", "flag", "detail")})
+    for fam, fl in families.items():
+        count: dict[str, int] = {}
+        for f in fl:
+            for k in f["undetermined"]:
+                count[k] = count.get(k, 0) + 1
+        by_n: dict[int, list[str]] = {}
+        for k, c in count.items():
+            by_n.setdefault(c, []).append(k)
+        dets = sorted({f["determined"] for f in fl if f["determined"]})
+        out.append({"where": f"{fam} ({len(fl)} fit{'s' * (len(fl) > 1)})", "flag": "parameters not determined",
+                    "detail": "; ".join(f"{', '.join(ks)} in {c}" for c, ks in sorted(by_n.items(), reverse=True))
+                    + (f"; determined instead: {', '.join(dets)} (below)" if dets else "")})
+    return out
 
 
 def determined_tables(fits: dict) -> list[str]:
@@ -141,7 +184,7 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
            "approximate, local, and conditional on the model being right (each fit's uncertainty.md has the "
            "correlations).", ""]
     md += ["## Flags", ""]
-    all_flags = flags65 + flags66 + fit_flags
+    all_flags = short_flags({"table 6.5": (flags65, len(t65)), "table 6.6": (flags66, len(t66))}, fit_flags)
     md += [_md_table(pd.DataFrame(all_flags, columns=["where", "flag", "detail"]))] if all_flags else ["none"]
     md += ["", f"Thresholds: |peak diff| > {peak_pct:g} %, |PSD diff| > {psd_db:g} dB, a parameter is not "
            f"determined when its interval half-width exceeds {REL_CI_MAX:.0%} of its value, it correlates with "

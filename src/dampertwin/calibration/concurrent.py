@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from ..checkpoint import as_store
-from .ga import INFEASIBLE, NEAR_SPREAD, FitError, GASettings, ParamSpec
+from .ga import INFEASIBLE, NEAR_SPREAD, FitError, GASettings, ParamSpec, bound_hits
 
 
 @dataclass(frozen=True)
@@ -85,6 +85,7 @@ class ConcurrentResult:
     evaluations: int
     failures: dict = field(default_factory=dict)
     groups: list = field(default_factory=list)
+    bound_hits: list = field(default_factory=list)  # best values on an end of their search interval (ga.bound_hits)
 
 
 def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASettings, seed: int, *,
@@ -212,7 +213,7 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
     return ConcurrentResult(best, float(cache[best_key][-1]),
                             {g.name: float(cache[best_key][gi]) for gi, g in enumerate(groups)},
                             found_at[best_key], start, pd.DataFrame(rows), counters["failed"], counters["evals"],
-                            dict(failures), [g.name for g in groups])
+                            dict(failures), [g.name for g in groups], bound_hits(specs, best))
 
 
 def _state(pops, gen, rows, cache, found_at, counters, sig, failures) -> dict:

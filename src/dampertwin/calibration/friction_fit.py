@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from .ga import FitError, ParamSpec
+from .ga import bound_hits as _bound_hits
 from ..model.friction_only import simulate_friction
 
 FRICTION_PARAMS = ("F_c", "F_s", "k_b", "s2", "c_comp", "vd", "a_s", "alpha_s")
@@ -154,15 +155,12 @@ def _widened(s: ParamSpec, end: int) -> ParamSpec:
 
 
 def bound_hits(specs: list[ParamSpec], g: np.ndarray, origin: list[str]) -> list[dict]:
-    """Parameters within :data:`BOUND_TOL` of an end of their interval."""
-    out = []
-    for s, gi, o in zip(specs, g, origin):
-        for end, near in ((0, gi <= BOUND_TOL), (1, gi >= 1 - BOUND_TOL)):
-            if near:
-                kind = "physical" if (s.key, end) in PHYSICAL_ENDS else ("data-derived" if o == "data" else "user")
-                out.append({"parameter": s.key, "bound": "lower" if end == 0 else "upper",
-                            "value": float(s.to_value(gi)), "limit": s.lo if end == 0 else s.hi, "kind": kind})
-    return out
+    """Parameters within :data:`BOUND_TOL` of an end of their interval, the
+    bound's kind physical / data-derived / user."""
+    def kind(i, end):
+        return "physical" if (specs[i].key, end) in PHYSICAL_ENDS else ("data-derived" if origin[i] == "data" else "user")
+
+    return _bound_hits(specs, {s.key: float(s.to_value(gi)) for s, gi in zip(specs, g)}, tol=BOUND_TOL, kind=kind)
 
 
 # ---------------------------------------------------------------- optimiser

@@ -27,6 +27,9 @@ from ..errors import UserError
 
 INFEASIBLE = 1e30  # objective of a failed simulation
 TOP_KEPT = 10  # best distinct members returned (start points of a local polish)
+# a fitted value within this fraction of its search interval (the gene's [0, 1]) from an end is "on the
+# bound": a GA's best member rarely sits exactly on it, and 2 % of the window is inside a GA's final spread
+NEAR_BOUND = 0.02
 
 
 class FitError(UserError):
@@ -122,6 +125,26 @@ class FitResult:
     uncertainty: dict = field(default_factory=dict)  # calibration.uncertainty at the optimum
     specs: list = field(default_factory=list)  # the fitted quantities (set by the approach-1 fits)
     records: object = None  # calibration.polish.Records of the fit: re-evaluates its objective
+    bound_hits: list = field(default_factory=list)  # fitted values on an end of their search interval (bound_hits)
+
+
+def bound_hits(specs: list[ParamSpec], values: dict[str, float], *, tol: float = NEAR_BOUND,
+               kind: Callable[[int, int], str] | None = None) -> list[dict]:
+    """The fitted values within ``tol`` of an end of their search interval
+    (in gene space, so a log-scale interval counts in decades): parameter,
+    bound (lower / upper), value and limit [SI], and ``kind`` of the bound
+    (``kind(i, end)`` for spec i, end 0 = lower; default "search"). A value
+    there says the optimum may lie beyond the interval, or that the
+    parameter stands in for something the model lacks."""
+    out = []
+    for i, s in enumerate(specs):
+        v = float(values[s.key])
+        g = s.to_gene(v) if (s.scale != "log" or v > 0) else 0.0
+        for end, near in ((0, g <= tol), (1, g >= 1.0 - tol)):
+            if near:
+                out.append({"parameter": s.key, "bound": "lower" if end == 0 else "upper", "value": v,
+                            "limit": s.lo if end == 0 else s.hi, "kind": "search" if kind is None else kind(i, end)})
+    return out
 
 
 def split_scores(r, n: int) -> tuple[np.ndarray, list]:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .ga import Evaluator, FitResult, GASettings, ParamSpec, run_ga
+from .ga import Evaluator, FitResult, GASettings, ParamSpec, bound_hits, run_ga
 from .polish import PolishSettings, polish
 
 
@@ -63,6 +63,7 @@ def _least_squares(problem, specs: list[ParamSpec], settings: LeastSquaresSettin
     res = FitResult({s.key: float(s.to_value(g)) for s, g in zip(specs, best.x)}, float(best.cost), float("nan"),
                     pd.DataFrame(rows), 0, evals, top=[np.asarray(best.x, float)], objective_ga=float("nan"))
     res.specs, res.records = specs, problem
+    res.bound_hits = bound_hits(specs, res.best)
     return res
 
 
@@ -72,7 +73,8 @@ def run(problem, specs: list[ParamSpec], settings, *, seed: int = 0, x0: dict | 
     """Minimise ``problem`` over ``specs`` with the optimiser ``settings``
     name. ``x0``: the nominal values (a GA member, a polish start);
     ``checkpoint``: a store or path for the GA's state; ``extra``: further
-    unit-box start points of the least squares."""
+    unit-box start points of the least squares. The result lists the
+    fitted values that end on their search bounds (``bound_hits``)."""
     if isinstance(settings, LeastSquaresSettings):
         return _least_squares(problem, specs, settings, seed, extra)
     if not isinstance(settings, GASettings):
@@ -83,6 +85,7 @@ def run(problem, specs: list[ParamSpec], settings, *, seed: int = 0, x0: dict | 
     if polish_settings is not None:
         res = polish(problem, specs, res, polish_settings, label=f"{label} polish", progress=progress, nominal=x0)
     res.specs, res.records = specs, problem if hasattr(problem, "scores") else None
+    res.bound_hits = bound_hits(specs, res.best)
     return res
 
 
