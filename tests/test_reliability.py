@@ -608,3 +608,18 @@ def test_fuzz_measurement_frames_load_or_raise_data_error(tmp_path_factory, cols
         read_frame(p, protocol, rate=rate)
     except DataError as e:
         assert str(p) in str(e)
+
+
+def test_a_map_file_name_is_searched_in_the_allowed_folders(tmp_path):
+    """A calibrated design elsewhere whose case switches to another map of the
+    nominal design's folder (table 6.5 row 6) finds it there; a name no
+    allowed folder holds is an error naming the file."""
+    from dampertwin.design import DesignError
+
+    out = load(BASELINE).dump(tmp_path / "calibrated" / "d.yaml")
+    d = load(out, map_dirs=[CONF / "design"])
+    alt = d.with_overrides({"active_valve.pq_map": "active_valve_alternative.csv"})
+    assert alt.pq_map != d.pq_map
+    assert alt.pq_map == load(BASELINE).with_overrides({"active_valve.pq_map": "active_valve_alternative.csv"}).pq_map
+    with pytest.raises(DesignError, match="nowhere.csv' not found"):
+        d.with_overrides({"active_valve.pq_map": "nowhere.csv"})

@@ -662,7 +662,7 @@ def _parse_parameters(items, where, base_dir, errors, known_map=None,
             if not isinstance(value, str) or not value:
                 errors.append(f"{label}: value must be the file name of the P/Q map CSV, got {value!r}")
             else:
-                map_path = Path(value) if os.path.isabs(value) else base_dir / value
+                map_path = Path(value) if os.path.isabs(value) else _find_map(value, base_dir, allowed_dirs)
                 if known_map is not None:
                     pq_map = known_map
                 elif _inside(map_path, allowed_dirs or (base_dir,)):
@@ -955,6 +955,17 @@ def _inside(path: Path, folders) -> bool:
         except (ValueError, OSError, RuntimeError):
             continue
     return False
+
+
+def _find_map(name: str, base_dir: Path, folders) -> Path:
+    """A relative P/Q map file name: the design's folder first, then the
+    other allowed folders in order (``map_dirs``, DAMPERTWIN_MAP_DIRS), e.g.
+    a calibrated design whose case names the nominal design's alternative
+    map. The design's folder when no folder has it (the error names it)."""
+    for f in (base_dir, *folders):
+        if (Path(f) / name).is_file():
+            return Path(f) / name
+    return base_dir / name
 
 
 def _read_map(path: Path, label: str, errors: list[str]) -> PQMap | None:

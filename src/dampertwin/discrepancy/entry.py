@@ -34,8 +34,8 @@ class DiscrepancyError(UserError):
 def _conf_dir() -> Path:
     from ..config import repo_root
 
-    try:
-        return repo_root(Path.cwd()) / "conf"
+    try:  # relative to the working folder: messages and reports name no machine's folders
+        return Path(os.path.relpath(repo_root(Path.cwd()) / "conf"))
     except FileNotFoundError:
         return repo_root(Path(__file__).parent) / "conf"
 
