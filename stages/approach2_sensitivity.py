@@ -22,7 +22,10 @@ def main() -> None:
     cal = yaml_load_file(CONF / "calibration" / "approach2.yaml")
     rec, proto, mmeta = damper_record("training", p2.runs, p2.get("tail_s"))
     approach2.input_cutoff(cal, {"training": proto})  # a corner that would filter the motion: a clear error
-    settings = approach2.SensitivitySettings.from_config(cal["sensitivity"], n_base=int(p2.sensitivity.n_base))
+    # the profile sets N and may choose the design (second_order); the rest is conf/calibration/approach2.yaml
+    chosen = {k: p2.sensitivity[k] for k in ("second_order",) if k in p2.sensitivity}
+    settings = approach2.SensitivitySettings.from_config({**cal["sensitivity"], **chosen},
+                                                         n_base=int(p2.sensitivity.n_base))
     wset = sens.WeightSettings.from_config(cal["weights"])
     seed = seed_for("approach2_sensitivity")
     t0 = time.perf_counter()

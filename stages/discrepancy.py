@@ -2,20 +2,21 @@
 approach-1 calibrated baseline design (results/approach1/designs/
 baseline_1.6.yaml, written by assemble) and the measured folder (params.yaml
 `measured`) -> results/discrepancy/ (verdict.json, design.yaml, report.md,
-plots/). The profile (params.yaml `profile`) sets the workflow's budget
-(conf/discrepancy.yaml); the seed is conf/config.yaml `seed`."""
+plots/). The profile (params.yaml `profile`) names the workflow's budget
+(its `discrepancy:` key, a profile of conf/discrepancy.yaml); the seed is conf/config.yaml `seed`."""
 
 import os
 
-from _common import OUT, ROOT, config, measured_dir, params, stage
+from _common import OUT, ROOT, config, measured_dir, stage
 from dampertwin.discrepancy.entry import main as discrepancy
 
 
 def main() -> None:
+    cfg = config()
     os.chdir(ROOT)  # paths relative to the repository: the report names no machine's folders (same bytes anywhere)
     rel = lambda p: os.path.relpath(p, ROOT)  # noqa: E731
     doc = discrepancy(rel(OUT / "designs" / "baseline_1.6.yaml"), rel(measured_dir()), rel(ROOT / "results" / "discrepancy"),
-                      profile=params()["profile"], seed=int(config().seed))
+                      profile=cfg.profile.get("discrepancy", cfg.profile.name), seed=int(cfg.seed))
     print(f"discrepancy: verdict {doc['verdict']} {', '.join(doc['effects'])}; held-out gap "
           f"{doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g}")
 

@@ -128,3 +128,20 @@ def test_dask_scheduler_runs_the_same_code_path():
         sc._map.close()
     local = run_concurrent(GROUPS, BatchScorer(scorer(), 5), s, seed=6, progress=False)
     assert on_cluster.best == local.best and on_cluster.best_objective == local.best_objective
+
+
+def test_concurrent_gas_stop_once_converged():
+    """With a stall window the concurrent GAs end before the budget once the
+    best unweighted residual stops gaining, on the fixed budget's path."""
+    from dataclasses import replace
+
+    x0 = {s.key: s.lo + 0.5 * (s.hi - s.lo) for g in GROUPS for s in g.specs}
+    a = run_concurrent(GROUPS, BatchScorer(scorer(), 5), SETTINGS, seed=2, progress=False, x0=x0)
+    b = run_concurrent(GROUPS, BatchScorer(scorer(), 5), replace(SETTINGS, stall_generations=4, stall_tol=1e-2),
+                       seed=2, progress=False, x0=x0)
+    n = len(b.history) - 1
+    assert n < SETTINGS.generations and b.evaluations < a.evaluations
+    col = "best unweighted so far"
+    assert b.history[col].iloc[:n].tolist() == a.history[col].iloc[:n].tolist()
+    h = b.history[col].tolist()
+    assert h[n - 5] - h[n - 1] <= 1e-2 * h[n - 5]

@@ -120,3 +120,51 @@ def test_bad_calibration_config_names_file_and_item():
         with pytest.raises(ValueError, match=why) as ei:
             specs_from_config(d, bad, prefix="piston_rebound.", where="v.yaml")
         assert "v.yaml" in str(ei.value)
+
+
+# ------------------------------------------------------------ convergence stop (profile `full`)
+def test_converged_reads_the_gain_over_the_last_generations():
+    s = GASettings(16, 80, 40, 10, stall_generations=3, stall_tol=0.01)
+    assert not s.converged([10.0, 9.0, 9.0])  # fewer generations than the window
+    assert s.converged([10.0, 9.0, 9.0, 8.95, 8.95])  # 0.56 % over the last three: stop
+    assert not s.converged([10.0, 9.0, 9.0, 8.95, 8.0])  # 11 % over the last three: go on
+    assert not GASettings(16, 80, 40, 10).converged([1.0] * 40)  # no stall setting: the fixed budget
+
+
+def test_ga_stops_once_converged_and_resumes_alike(tmp_path):
+    """With a stall window the GA ends before its budget on a bowl it has
+    solved, no worse than the fixed budget beyond the tolerance; a killed and
+    resumed run stops at the same generation with the same result; without
+    the setting the history is the fixed budget's, unchanged."""
+    fixed = GASettings(population=16, reproduction_ratio=80, generations=60, mutation_probability=10)
+    stall = GASettings(16, 80, 60, 10, stall_generations=5, stall_tol=1e-3)
+    a = run_ga(SPECS, Evaluator(bowl), fixed, seed=3, progress=False)
+    b = run_ga(SPECS, Evaluator(bowl), stall, seed=3, progress=False)
+    n = len(b.history) - 1  # generations run
+    assert 5 < n < 60 and b.evaluations < a.evaluations
+    assert b.history.best.iloc[:n].tolist() == a.history.best.iloc[:n].tolist()  # same path until the stop
+    best = b.history.best.tolist()
+    assert best[n - 6] - best[n - 1] <= 1e-3 * best[n - 6] and best[n - 7] - best[n - 2] > 1e-3 * best[n - 7]
+    assert b.best_objective < 0.05
+    ck, calls = tmp_path / "ck.npz", {"n": 0}
+
+    def dying(X):
+        calls["n"] += 1
+        if calls["n"] == n - 1:
+            raise KeyboardInterrupt
+        return bowl(X)
+
+    with pytest.raises(KeyboardInterrupt):
+        run_ga(SPECS, Evaluator(dying), stall, seed=3, checkpoint=ck, progress=False)
+    resumed = run_ga(SPECS, Evaluator(bowl), stall, seed=3, checkpoint=ck, progress=False)
+    assert resumed.best == b.best and resumed.history.equals(b.history)
+
+
+@pytest.mark.parametrize("bad", [{"stall_generations": 0}, {"stall_generations": 2.5},
+                                 {"stall_generations": 4, "stall_tol": 1.5}, {"stall_tol": "x"}])
+def test_stall_settings_are_checked(bad):
+    from dampertwin.errors import UserError
+
+    with pytest.raises(UserError, match="stall_"):
+        GASettings.from_config({"population": 4, "reproduction_ratio": 80, "generations": 1,
+                                "mutation_probability": 10, "max_wall_s": 10, **bad})

@@ -236,7 +236,7 @@ def _add_import_fit(sub) -> None:
     fit.add_argument("--population", type=int, default=None, help="GA population (default 20)")
     fit.add_argument("--generations", type=int, default=None, help="GA generations (default 15)")
     fit.add_argument("--seed", type=int, default=0)
-    fit.add_argument("--profile", choices=("ci", "full"), default=None,
+    fit.add_argument("--profile", choices=("ci", "full", "thesis"), default=None,
                      help="GA and polish budgets of the study profile conf/profile/PROFILE.yaml (valve, compliance, "
                           "topmount; --population / --generations still override)")
     fit.add_argument("--effect", action="append", default=[], choices=("asymmetric", "free_play"),

@@ -10,7 +10,8 @@ per group on the group's own scores (the per-generation pygad engine of
 :mod:`dampertwin.calibration.ga`, thesis 5.1.2 operators), then the groups'
 new chromosomes are combined again. The best solution is tracked by the
 unweighted residual ("fitness function without sensitivity signal");
-the number of generations is fixed.
+the thesis fixes the number of generations; with the settings'
+``stall_generations`` the GAs stop once that best has stopped gaining.
 
 Engineering, as :func:`dampertwin.calibration.ga.run_ga`:
 - a cache of scores keyed on the *combined* chromosome: an individual whose
@@ -173,6 +174,8 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
 
     bar = tqdm(total=settings.generations, initial=start_gen, desc=label, disable=not progress, leave=False)
     for gen in range(start_gen, settings.generations):
+        if settings.converged([r["best unweighted so far"] for r in rows]):  # resumed fits stop alike
+            break
         S = objective(np.hstack(pops))  # Combine + Simulations + Fitness_g for every group
         record(gen, S)
         bar.set_postfix(best=f"{min(v[-1] for v in cache.values()):.4g}")
@@ -203,7 +206,7 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
         bar.update(1)
     bar.close()
     S = objective(np.hstack(pops))
-    record(settings.generations, S)
+    record(len(rows), S)
     best_key = min(cache, key=lambda k: (cache[k][-1], found_at[k]))
     if cache[best_key][-1] >= INFEASIBLE:
         raise FitError(f"{label}: every simulation failed ({counters['evals']} evaluations); reasons: {failures}")

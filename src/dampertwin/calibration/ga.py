@@ -98,6 +98,10 @@ class GASettings:
     mutation_probability: float
     elitism: int = 1
     max_wall_s: float | None = None  # wall-time cap [s] of one population's simulations
+    # convergence stop: end when the best objective has gained no more than stall_tol (relative) over the last
+    # stall_generations generations (None: the fixed budget of the thesis' tables 6.2 / 6.3)
+    stall_generations: int | None = None
+    stall_tol: float = 0.0
 
     @classmethod
     def from_config(cls, c) -> "GASettings":
@@ -105,9 +109,26 @@ class GASettings:
         if wall is None or isinstance(wall, bool) or not isinstance(wall, (int, float)) or not wall > 0:
             raise UserError(f"GA settings {dict(c)}: max_wall_s {wall!r}; expected a positive wall-time cap [s] "
                             f"for one population's simulations (conf/profile/*.yaml)")
+        k, tol = c.get("stall_generations"), c.get("stall_tol", 0.0)
+        if k is not None and (isinstance(k, bool) or not isinstance(k, int) or k < 1):
+            raise UserError(f"GA settings {dict(c)}: stall_generations {k!r}; expected a positive integer "
+                            f"(generations without gain before the GA stops) or null (conf/profile/*.yaml)")
+        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < 1:
+            raise UserError(f"GA settings {dict(c)}: stall_tol {tol!r}; expected a relative gain in [0, 1) "
+                            f"(conf/profile/*.yaml)")
         return cls(int(c["population"]), float(c["reproduction_ratio"]), int(c["generations"]),
                    float(c["mutation_probability"]), int(c.get("elitism", 1)),
-                   None if wall is None else float(wall))
+                   None if wall is None else float(wall), k, float(tol))
+
+    def converged(self, best: list[float]) -> bool:
+        """True when the best objective per generation so far (``best``,
+        non-increasing with elitism) gained no more than ``stall_tol`` of its
+        value over the last ``stall_generations`` generations."""
+        k = self.stall_generations
+        if k is None or len(best) <= k:
+            return False
+        old, new = min(best[:-k]), min(best)
+        return old - new <= self.stall_tol * abs(old)
 
 
 @dataclass
@@ -245,6 +266,8 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
     parents = max(2, int(round(settings.population * settings.reproduction_ratio / 100.0)))
     bar = tqdm(total=settings.generations, initial=start_gen, desc=label, disable=not progress, leave=False)
     for gen in range(start_gen, settings.generations):
+        if settings.converged([r["best"] for r in rows]):  # from the history alone: a resumed fit stops alike
+            break
         J = objective(pop)
         rows.append({"generation": gen, "best": float(J.min()), "mean": float(np.mean(J[J < INFEASIBLE]))
                      if np.any(J < INFEASIBLE) else float("nan"), "failed": int(np.sum(J >= INFEASIBLE))})
@@ -262,7 +285,7 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
         bar.update(1)
     bar.close()
     J = objective(pop)
-    rows.append({"generation": settings.generations, "best": float(J.min()),
+    rows.append({"generation": len(rows), "best": float(J.min()),
                  "mean": float(np.mean(J[J < INFEASIBLE])) if np.any(J < INFEASIBLE) else float("nan"),
                  "failed": int(np.sum(J >= INFEASIBLE))})
     ranked = sorted((k_ for k_ in cache if cache[k_] < INFEASIBLE), key=cache.get) or [min(cache, key=cache.get)]
