@@ -1,6 +1,8 @@
-"""The study's fits under the default profile (`full`: GA convergence stop,
-first-order Sobol design) against the thesis' fixed budgets (`thesis`) on
-the same lab records, in ONE run: one JSON line.
+"""The study's fits under the default profile (`full`: the thesis' GA
+budgets, approach 2's first-order Sobol design) against `thesis` (its
+second-order Saltelli design) on
+the same lab records, in ONE run: one JSON line (with ``--stall``, also the
+default with every GA stopping on convergence).
 
 A reduced set (issue 39): the `flowbench_fit@piston_rebound`,
 `compliance_fit` and `topmount_fit@baseline` stage code (GA + polish, the
@@ -12,6 +14,7 @@ profile: wall and CPU seconds, evaluations (simulations), final objective;
 then the ratios full / thesis.
 
     PYTHONPATH=src python bench/study.py --measured data/measured [--parts valve,compliance,topmount,approach2]
+        [--stall 8:1e-3]
 
 CPU seconds are the process's (all threads). The machine is shared while
 sessions work: compare ratios and evaluations, which the load does not move.
@@ -107,6 +110,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--measured", default=str(ROOT / "data" / "measured"), help="lab records (flowbench/, ...)")
     ap.add_argument("--parts", default=",".join(PARTS), help=f"comma-separated subset of {', '.join(PARTS)}")
+    ap.add_argument("--stall", default=None, metavar="K:TOL",
+                    help="also run profile full with every GA stopping after K generations that gained <= TOL "
+                         "(relative): the convergence-stop lever")
     a = ap.parse_args()
     parts = [p for p in a.parts.split(",") if p]
     bad = [p for p in parts if p not in PARTS]
@@ -116,17 +122,26 @@ def main() -> None:
     d = load(CONF / "design" / "baseline.yaml")
     fns = {"valve": _valve, "compliance": _compliance, "topmount": _topmount, "approach2": _approach2}
     out: dict = {"bench": "study", "measured": str(meas)}
+    variants = {name: yaml_load_file(CONF / "profile" / f"{name}.yaml") for name in ("full", "thesis")}
+    if a.stall:
+        k, tol = a.stall.split(":")
+        full = variants["full"]
+        stall = {"stall_generations": int(k), "stall_tol": float(tol)}
+        variants["stall"] = {**full, "ga": {b: {**g, **stall} for b, g in full["ga"].items()},
+                             "approach2": {**full["approach2"], "ga": {**full["approach2"]["ga"], **stall}}}
+        out["stall"] = stall
     for part in parts:
-        for name in ("full", "thesis"):
-            prof = yaml_load_file(CONF / "profile" / f"{name}.yaml")
+        for name, prof in variants.items():
             res, w, c = _timed(lambda: fns[part](prof, d, meas))
             out[f"{part} {name}"] = {"wall [s]": round(w, 2), "cpu [s]": round(c, 2), "evaluations": res.evaluations,
                                      "objective": res.best_objective,
                                      "generations": int(len(res.history) - 1)}
-        f, t = out[f"{part} full"], out[f"{part} thesis"]
-        out[f"{part} full/thesis"] = {"wall": round(f["wall [s]"] / t["wall [s]"], 3),
-                                      "evaluations": round(f["evaluations"] / t["evaluations"], 3),
-                                      "objective": round(f["objective"] / t["objective"], 4)}
+        t = out[f"{part} thesis"]
+        for name in [v for v in variants if v != "thesis"]:
+            f = out[f"{part} {name}"]
+            out[f"{part} {name}/thesis"] = {"wall": round(f["wall [s]"] / t["wall [s]"], 3),
+                                            "evaluations": round(f["evaluations"] / t["evaluations"], 3),
+                                            "objective": round(f["objective"] / t["objective"], 4)}
     out["total full/thesis wall"] = round(float(np.sum([out[f"{p} full"]["wall [s]"] for p in parts])
                                           / np.sum([out[f"{p} thesis"]["wall [s]"] for p in parts])), 3)
     print(json.dumps(out))
