@@ -13,9 +13,10 @@ from dampertwin.discrepancy.entry import main as discrepancy
 
 def main() -> None:
     os.chdir(ROOT)  # paths relative to the repository: the report names no machine's folders (same bytes anywhere)
+    cfg = config()  # the profile's `scheduler:` (a Dask address) runs the records on that cluster
     rel = lambda p: os.path.relpath(p, ROOT)  # noqa: E731
     doc = discrepancy(rel(OUT / "designs" / "baseline_1.6.yaml"), rel(measured_dir()), rel(ROOT / "results" / "discrepancy"),
-                      profile=params()["profile"], seed=int(config().seed))
+                      profile=params()["profile"], seed=int(cfg.seed), scheduler=cfg.profile.scheduler)
     print(f"discrepancy: verdict {doc['verdict']} {', '.join(doc['effects'])}; held-out gap "
           f"{doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g}")
 

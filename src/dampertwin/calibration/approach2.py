@@ -225,9 +225,13 @@ def trapezoid_weights_per_case(cases) -> np.ndarray:
 
 
 def sensitivity(design: Design, measured: pd.DataFrame, cal: dict, settings: SensitivitySettings, seed: int, *,
-                bandwidth: float | None, max_wall_s: float | None, batch: int = 16, progress: bool = True):
+                bandwidth: float | None, max_wall_s: float | None, batch: int = 16, progress: bool = True,
+                scheduler: str | None = None):
     """Time-resolved grouped Sobol indices of the simulated training force
-    (valve groups only). Returns (problem, SobolResult, Y)."""
+    (valve groups only), the runs simulated ``batch`` at a time, locally or
+    (a Dask ``scheduler`` address) one batch per task on the cluster: the
+    same batches, the same numbers. Returns (problem, SobolResult, Y)."""
+    from ..parallel import DaskMap
     from ..progress import progress as tqdm
 
     groups, _ = groups_from_config(design, cal)
@@ -236,6 +240,13 @@ def sensitivity(design: Design, measured: pd.DataFrame, cal: dict, settings: Sen
     prob = TrainingProblem(design, measured, specs, float(_need(cal, "input_cutoff", WHERE)), bandwidth, max_wall_s)
 
     def output(X):
+        if scheduler:
+            cluster = DaskMap(scheduler)
+            try:
+                return np.vstack([y for y, _ in cluster(prob.simulated, [X[lo:lo + batch]
+                                                                          for lo in range(0, len(X), batch)])])
+            finally:
+                cluster.close()
         parts = []
         for lo in tqdm(range(0, len(X), batch), desc="sensitivity runs", disable=not progress, leave=False):
             parts.append(prob.simulated(X[lo:lo + batch]))
