@@ -9,6 +9,7 @@ tests/test_concurrent_ga.py) -- each against a 2-worker
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import subprocess
 import sys
@@ -58,6 +59,39 @@ def test_approach2_sensitivity_on_a_cluster_gives_the_same_bytes(short_training)
     assert remote.meta == local.meta
 
 
+def test_approach2_fit_on_a_cluster_gives_the_same_fit(short_training):  # noqa: F811
+    from dampertwin.calibration import approach2 as a2
+    from dampertwin.calibration.ga import GASettings
+    from dampertwin.design import load, yaml_load_file
+
+    design = load(ROOT / "conf" / "design" / "baseline.yaml")
+    cal = yaml_load_file(ROOT / "conf" / "calibration" / "approach2.yaml")
+    rec = a2.check_damper_record(short_training, "training", ["I1.6"])
+    W = np.ones((len(a2.VALVES), sum(len(c[1]) for c in a2.damper_cases(rec, float(cal["input_cutoff"])))))
+    s = GASettings(population=4, reproduction_ratio=75, generations=1, mutation_probability=10, max_wall_s=120)
+    kw = dict(seed=5, bandwidth=1000.0, progress=False)
+    local, _ = a2.fit(design, rec, cal, W, list(a2.VALVES), s, **kw)
+    with cluster() as lc:
+        remote, _ = a2.fit(design, rec, cal, W, list(a2.VALVES), s, scheduler=lc.scheduler_address, **kw)
+        assert executed(lc) >= 2
+    assert remote.best == local.best and remote.best_group_objectives == local.best_group_objectives
+    assert remote.history.equals(local.history)
+
+
+def test_eq_7_1_integrals_do_not_depend_on_the_batch():
+    """A member scored alone, in a chunk or in the whole population: the same bits (a matrix product's
+    blocking depends on the batch size and once changed the last digit on a cluster)."""
+    from dampertwin.calibration import sensitivity as sens
+
+    rng = np.random.default_rng(0)
+    R, W, q = np.abs(rng.standard_normal((50, 20001))), rng.uniform(0, 1, (4, 20001)), rng.uniform(0, 1e-3, 20001)
+    full = sens.weighted_integrals(R, q, W)
+    assert full == pytest.approx(R @ (W * q).T, rel=1e-12)
+    for lo, k in ((0, 1), (5, 2), (10, 7), (20, 13)):
+        assert sens.weighted_integrals(R[lo:lo + k], q, W).tobytes() == full[lo:lo + k].tobytes()
+        assert sens.row_integrals(R[lo:lo + k], q).tobytes() == sens.row_integrals(R, q)[lo:lo + k].tobytes()
+
+
 def test_discrepancy_workflow_on_a_cluster_gives_the_same_bytes(control, tmp_path):  # noqa: F811
     from dampertwin.discrepancy import entry
 
@@ -71,6 +105,22 @@ def test_discrepancy_workflow_on_a_cluster_gives_the_same_bytes(control, tmp_pat
     assert a == b
     for name in ("verdict.json", "resolvability.json", "design.yaml", "report.md"):
         assert (tmp_path / "cluster" / name).read_bytes() == (tmp_path / "local" / name).read_bytes(), name
+
+
+def test_fit_command_on_a_cluster_gives_the_same_fit(tmp_path):
+    """``dampertwin fit --scheduler``: the GA's populations on the cluster, the same fit.json."""
+    from dampertwin.cli import main
+    from test_fitting import _top_mount_record
+
+    rec = _top_mount_record(tmp_path, 0.0, {})
+    args = ["fit", "topmount", "--data", str(rec), "--param", "k0=6e5:2.4e6:log", "--population", "6",
+            "--generations", "2"]
+    with cluster() as lc:
+        assert main([*args, "--out", str(tmp_path / "cluster"), "--scheduler", lc.scheduler_address]) == 0
+        assert executed(lc) >= 2
+    assert main([*args, "--out", str(tmp_path / "local")]) == 0
+    a, b = (json.loads((tmp_path / f / "fit.json").read_text()) for f in ("cluster", "local"))
+    assert a == b
 
 
 def _sweep(results: Path, *extra: str) -> None:
@@ -88,9 +138,13 @@ def _files(folder: Path) -> dict:
 
 @pytest.mark.slow  # two Hydra multiruns of two variants (~3 min on 2 loaded cores)
 def test_sweep_on_a_cluster_gives_the_same_bytes(tmp_path):
+    runs = tmp_path / "sweeps"  # one results_dir for both (it is in the artifacts' metadata)
     with cluster(processes=True) as lc:  # Hydra's job state is per process: process workers
-        _sweep(tmp_path / "cluster", "--scheduler", lc.scheduler_address)
-    _sweep(tmp_path / "local")
+        _sweep(runs, "--scheduler", lc.scheduler_address)
+        assert sum(p.all_durations.get("compute", 0) for p in lc.scheduler.task_prefixes.values()) > 0  # ran there
+    runs.rename(tmp_path / "cluster")
+    _sweep(runs)
+    runs.rename(tmp_path / "local")
     a, b = _files(tmp_path / "cluster" / "t"), _files(tmp_path / "local" / "t")
     assert {"baseline_1.6/monosine.parquet", "lower_base_intake/kpis.parquet", "summary.parquet"} <= set(a)
     assert a.keys() == b.keys() and all(a[k] == b[k] for k in a), [k for k in a if a[k] != b.get(k)]
@@ -99,7 +153,7 @@ def test_sweep_on_a_cluster_gives_the_same_bytes(tmp_path):
 def test_dask_launcher_needs_a_scheduler_address():
     from hydra_plugins.dampertwin_dask_launcher.dask_launcher import DaskLauncher
 
-    for bad in ({}, {"scheduler": ""}, {"scheduler": "tcp://h:1", "n_jobs": 2}):
+    for bad in ({}, {"scheduler": ""}, {"scheduler": "tcp://h:1", "backend": "loky"}):
         with pytest.raises(UserError, match=r"conf/hydra/launcher/dask\.yaml: (scheduler|unknown key)"):
             DaskLauncher(**bad)
     launcher = yaml.safe_load((ROOT / "conf" / "hydra" / "launcher" / "dask.yaml").read_text())

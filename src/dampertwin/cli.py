@@ -285,6 +285,9 @@ def _add_import_fit(sub) -> None:
     fit.add_argument("--profile", choices=("ci", "full"), default=None,
                      help="GA and polish budgets of the study profile conf/profile/PROFILE.yaml (valve, compliance, "
                           "topmount; --population / --generations still override)")
+    fit.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="Dask scheduler address (tcp://HOST:PORT): the GA's populations are evaluated on that "
+                          "cluster (valve, compliance, topmount; same results)")
     fit.add_argument("--effect", action="append", default=[], choices=("asymmetric", "free_play"),
                      help="friction: add a library effect to the law (repeatable); the report says whether the "
                           "held-out cycles support it")

@@ -56,6 +56,14 @@ class DaskMap:
         return ClusterExecutor(self)
 
 
+def release(evaluator) -> None:
+    """Close the cluster client of an evaluator (``Evaluator``, ``BatchScorer``) that has one, once its fit
+    is over: no client is left connected to a cluster that stops."""
+    m = getattr(evaluator, "_map", None)
+    if m is not None:
+        m.close()
+
+
 class ClusterExecutor:
     """A :class:`DaskMap`'s client as an executor: ``submit(fn, *args)`` -> a
     ``concurrent.futures.Future``; ``shutdown(wait, cancel_futures)`` like a

@@ -27,14 +27,16 @@ def _job(item, **kw):
 
 
 class DaskLauncher(Launcher):
-    def __init__(self, scheduler: str | None = None, **kwargs: Any) -> None:
+    def __init__(self, scheduler: str | None = None, n_jobs: Any = None, **kwargs: Any) -> None:
+        """``n_jobs`` (conf/sweep.yaml's, for the joblib launcher) is ignored: the cluster's workers set
+        the parallelism."""
         from dampertwin.errors import UserError
 
         if not scheduler or not isinstance(scheduler, str):
             raise UserError("conf/hydra/launcher/dask.yaml: scheduler: expected a Dask scheduler address "
                             "(tcp://HOST:PORT; dampertwin sweep --scheduler ADDRESS)")
         if kwargs:
-            raise UserError(f"conf/hydra/launcher/dask.yaml: unknown key(s) {sorted(kwargs)}; expected scheduler")
+            raise UserError(f"conf/hydra/launcher/dask.yaml: unknown key(s) {sorted(kwargs)}; expected scheduler (n_jobs is ignored)")
         self.scheduler = scheduler
         self.config = self.task_function = self.hydra_context = None
 
