@@ -92,6 +92,21 @@ def test_eq_7_1_integrals_do_not_depend_on_the_batch():
         assert sens.row_integrals(R[lo:lo + k], q).tobytes() == sens.row_integrals(R, q)[lo:lo + k].tobytes()
 
 
+def test_approach1_objective_does_not_depend_on_the_batch():
+    """The GA objective of the study's fits (eq. 6.x, calibration.polish.Records): a member's value is the
+    same bits whichever chunk of its population a cluster worker scores."""
+    from dampertwin.calibration.polish import Records
+
+    rng = np.random.default_rng(1)
+    X = rng.uniform(0, 1, (30, 3))
+    basis = rng.standard_normal((3, 8001))
+    rec = Records(lambda P: np.sin(P @ basis), rng.uniform(0, 1e-3, 8001))
+    full = rec.scores(X)[0]
+    assert full == pytest.approx(np.abs(np.sin(X @ basis)) @ rec.weights, rel=1e-12)
+    for lo, k in ((0, 1), (3, 2), (7, 8), (15, 15)):
+        assert rec.scores(X[lo:lo + k])[0].tobytes() == full[lo:lo + k].tobytes()
+
+
 def test_discrepancy_workflow_on_a_cluster_gives_the_same_bytes(control, tmp_path):  # noqa: F811
     from dampertwin.discrepancy import entry
 
@@ -148,6 +163,16 @@ def test_sweep_on_a_cluster_gives_the_same_bytes(tmp_path):
     a, b = _files(tmp_path / "cluster" / "t"), _files(tmp_path / "local" / "t")
     assert {"baseline_1.6/monosine.parquet", "lower_base_intake/kpis.parquet", "summary.parquet"} <= set(a)
     assert a.keys() == b.keys() and all(a[k] == b[k] for k in a), [k for k in a if a[k] != b.get(k)]
+
+
+def test_an_unreachable_scheduler_is_a_clear_error():
+    import dask
+
+    from dampertwin.parallel import DaskMap
+
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(UserError, match=r"scheduler 'tcp://127.0.0.1:9': no Dask scheduler reached"):
+            DaskMap("tcp://127.0.0.1:9")(abs, [1])
 
 
 def test_dask_launcher_needs_a_scheduler_address():

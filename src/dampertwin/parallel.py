@@ -34,7 +34,14 @@ class DaskMap:
             except ImportError as e:
                 raise RuntimeError("a Dask scheduler is configured but dask.distributed is not installed "
                                    "(pip install -e '.[dask]')") from e
-            self._client = Client(self.scheduler)
+            try:
+                self._client = Client(self.scheduler)
+            except (OSError, ValueError, TypeError) as e:  # nothing answers, or not an address
+                from .errors import UserError
+
+                raise UserError(f"scheduler {self.scheduler!r}: no Dask scheduler reached ({e}); expected the "
+                                "address of a running one, tcp://HOST:PORT (--scheduler or the profile's "
+                                "scheduler:)") from None
         return self._client
 
     def close(self) -> None:
