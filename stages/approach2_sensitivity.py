@@ -31,7 +31,7 @@ def main() -> None:
     t0 = time.perf_counter()
     prob, res, Y = approach2.sensitivity(baseline(), rec, cal, settings, seed,
                                          bandwidth=proto.get("sensors", {}).get("force"),
-                                         max_wall_s=float(p2.ga.max_wall_s))
+                                         max_wall_s=float(p2.ga.max_wall_s), scheduler=cfg.profile.scheduler)
     wall = time.perf_counter() - t0
     print(f"approach2_sensitivity: {res.meta['runs']} runs in {wall:.1f} s wall", flush=True)  # not an artifact: same config, same bytes
     W = sens.weights(res.S1, prob.time, wset)

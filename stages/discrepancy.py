@@ -12,11 +12,12 @@ from dampertwin.discrepancy.entry import main as discrepancy
 
 
 def main() -> None:
-    cfg = config()
+    cfg = config()  # the profile's `scheduler:` (a Dask address) runs the records on that cluster
     os.chdir(ROOT)  # paths relative to the repository: the report names no machine's folders (same bytes anywhere)
     rel = lambda p: os.path.relpath(p, ROOT)  # noqa: E731
     doc = discrepancy(rel(OUT / "designs" / "baseline_1.6.yaml"), rel(measured_dir()), rel(ROOT / "results" / "discrepancy"),
-                      profile=cfg.profile.get("discrepancy", cfg.profile.name), seed=int(cfg.seed))
+                      profile=cfg.profile.get("discrepancy", cfg.profile.name), seed=int(cfg.seed),
+                      scheduler=cfg.profile.scheduler)
     print(f"discrepancy: verdict {doc['verdict']} {', '.join(doc['effects'])}; held-out gap "
           f"{doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g}")
 

@@ -1,11 +1,14 @@
 """DVC stage `sweep`: the table-6.5 OFAT sweep (ten design cases, calibrated
 designs of the approach-1 study) -> results/sweeps/study_table65/ with its summary.
 Same job function as `dampertwin sweep +ofat=table65`, composed
-without @hydra.main; variants run in parallel on the local cores (joblib)."""
+without @hydra.main; variants run in parallel on the local cores (joblib), or
+on the Dask cluster the profile's `scheduler:` names."""
+
+from functools import partial
 
 from joblib import Parallel, delayed
 
-from _common import CONF, ROOT, measured_dir, stage, write_json, write_text
+from _common import CONF, ROOT, config, measured_dir, stage, write_json, write_text
 from dampertwin import kpi
 from dampertwin.errors import UserError
 from dampertwin.protocols import load_protocol
@@ -15,7 +18,17 @@ from dampertwin.sweep import TREND_RESOLUTION, lab_peaks, run_variant, summarize
 def main() -> None:
     cases = sorted(p.stem for p in (CONF / "variant").glob("*.yaml"))
     cfgs = [compose_sweep([f"variant={c}", "sweep=study_table65"]) for c in cases]
-    Parallel(n_jobs=2)(delayed(run_variant)(c, ROOT) for c in cfgs)
+    scheduler = config().profile.scheduler  # a Dask address: one variant per task on that cluster
+    if scheduler:
+        from dampertwin.parallel import DaskMap
+
+        cluster = DaskMap(scheduler)
+        try:
+            cluster(partial(run_variant, root=ROOT), cfgs)
+        finally:
+            cluster.close()
+    else:
+        Parallel(n_jobs=2)(delayed(run_variant)(c, ROOT) for c in cfgs)
     out = ROOT / "results" / "sweeps" / "study_table65"
     tab = summarize(out)
     failed = int((tab.status != "ok").sum()) if len(tab) else 0

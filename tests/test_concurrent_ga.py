@@ -122,7 +122,7 @@ def test_dask_scheduler_runs_the_same_code_path():
     import distributed  # a dev dependency
 
     s = GASettings(population=8, reproduction_ratio=75, generations=3, mutation_probability=15)
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as lc:
         sc = BatchScorer(scorer(), 5, scheduler=lc.scheduler_address, chunks=3)
         on_cluster = run_concurrent(GROUPS, sc, s, seed=6, progress=False)
         sc._map.close()

@@ -95,7 +95,7 @@ def test_dask_scheduler_runs_the_same_code_path():
     a Dask cluster (here an in-process LocalCluster): same fit, same result."""
     import distributed  # a dev dependency
 
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as lc:
         ev = Evaluator(bowl, scheduler=lc.scheduler_address, chunks=3)
         on_cluster = run_ga(SPECS, ev, SETTINGS, seed=5, progress=False)
         ev._map.close()

@@ -1,5 +1,5 @@
 """Command line: ``dampertwin design show|check``, ``simulate``, ``plot``, ``import``, ``fit``, ``lab``,
-``discrepancy``, ``sweep`` and ``--version``."""
+``discrepancy``, ``cluster``, ``sweep`` and ``--version``."""
 
 from __future__ import annotations
 
@@ -116,10 +116,19 @@ def build_parser() -> argparse.ArgumentParser:
     lab.add_argument("--conf", default=None, help="configuration folder with test/ and variant/ (default the project's)")
     lab.add_argument("--workers", type=int, default=None, help="parallel processes (default: all cores)")
     _add_discrepancy(sub)
+    clu = sub.add_parser("cluster", help="start a Dask cluster of SLURM jobs (dask-jobqueue) and print its "
+                         "scheduler address, for --scheduler / the profile's scheduler: (Ctrl-C stops it)")
+    clu.add_argument("--config", default="conf/cluster/slurm.yaml", help="cluster description YAML "
+                     "(cores, memory, walltime, queue, account, processes, jobs, job_extra_directives)")
+    clu.add_argument("--check", action="store_true", help="only check the description and print the SLURM job "
+                     "script (no job submitted)")
     swp = sub.add_parser("sweep", help="one-factor-at-a-time design sweep (Hydra multirun of conf/sweep.yaml); "
                          "exit 1 if every variant failed", add_help=False)
     swp.add_argument("--root", default=None, help="project root (default $DAMPERTWIN_ROOT or the repository "
                      "around the working directory)")
+    swp.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="Dask scheduler address (tcp://HOST:PORT): the variants run as tasks on that cluster "
+                          "(Hydra launcher `dask`; same results)")
     swp.add_argument("overrides", nargs="*", metavar="OVERRIDE",
                      help="Hydra overrides, e.g. +ofat=table65 or factor=piston_intake.a level=-0.3,0.3 "
                           "(-m is implied); --help shows Hydra's help")
@@ -129,16 +138,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(argv: list[str]) -> int:
     ap = build_parser()
     if argv and argv[0] == "sweep":  # Hydra parses its own options (-m, --cfg, --help, ...), in order
-        rest, root = list(argv[1:]), None
-        if "--root" in rest:
-            i = rest.index("--root")
-            if i + 1 >= len(rest):
-                raise UserError("sweep: argument --root: expected one argument (a project folder)")
-            root = rest[i + 1]
-            del rest[i:i + 2]
+        rest = list(argv[1:])
+        root, scheduler = _take_option(rest, "--root", "a project folder"), _take_option(rest, "--scheduler",
+                                                                                        "a Dask scheduler address")
         from .sweep import multirun
 
-        return multirun(rest, root=root)
+        return multirun(rest, root=root, scheduler=scheduler)
     args = ap.parse_args(argv)
     from .cli_checks import check_args, output_lock
 
@@ -152,6 +157,8 @@ def _main(argv: list[str]) -> int:
             return _run_simulate(args)
         if args.cmd in ("import", "fit"):
             return _run_import_fit(args)
+    if args.cmd == "cluster":
+        return _run_cluster(args)
     if args.cmd == "plot":
         from .plotting import plot_case
 
@@ -164,6 +171,45 @@ def _main(argv: list[str]) -> int:
             print(p)
         return 0
     return _run_design(args)
+
+
+def _run_cluster(args) -> int:
+    """Check conf/cluster/*.yaml; start the SLURM jobs and serve until Ctrl-C (``--check``: print the job script)."""
+    import time
+
+    from .design import yaml_load_file
+    from .parallel import slurm_cluster
+
+    path = Path(args.config)
+    if not path.is_file():
+        raise UserError(f"{path}: cluster description not found (e.g. conf/cluster/slurm.yaml)")
+    doc = yaml_load_file(path)  # bad YAML: a ConfigTextError naming the file
+    cluster = slurm_cluster(doc, str(path))
+    try:
+        if args.check:
+            print(cluster.job_script())
+            return 0
+        cluster.scale(jobs=doc["jobs"])
+        print(f"scheduler: {cluster.scheduler_address}  (--scheduler {cluster.scheduler_address}; Ctrl-C stops "
+              f"the {doc['jobs']} SLURM jobs)", flush=True)
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        cluster.close()
+
+
+def _take_option(rest: list[str], name: str, what: str) -> str | None:
+    """Remove ``name VALUE`` from ``rest`` (the sweep's own options, before Hydra's); its value or None."""
+    if name not in rest:
+        return None
+    i = rest.index(name)
+    if i + 1 >= len(rest):
+        raise UserError(f"sweep: argument {name}: expected one argument ({what})")
+    value = rest[i + 1]
+    del rest[i:i + 2]
+    return value
 
 
 def _run_design(args) -> int:
@@ -239,6 +285,9 @@ def _add_import_fit(sub) -> None:
     fit.add_argument("--profile", choices=("ci", "full", "thesis"), default=None,
                      help="GA and polish budgets of the study profile conf/profile/PROFILE.yaml (valve, compliance, "
                           "topmount; --population / --generations still override)")
+    fit.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="Dask scheduler address (tcp://HOST:PORT): the GA's populations are evaluated on that "
+                          "cluster (valve, compliance, topmount; same results)")
     fit.add_argument("--effect", action="append", default=[], choices=("asymmetric", "free_play"),
                      help="friction: add a library effect to the law (repeatable); the report says whether the "
                           "held-out cycles support it")
@@ -273,6 +322,9 @@ def _add_discrepancy(sub) -> None:
     dis.add_argument("--seed", type=int, default=0, help="seed of every random draw (bootstrap)")
     dis.add_argument("--workers", type=int, default=None,
                      help="processes simulating the records in parallel (default: all cores; same results)")
+    dis.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="Dask scheduler address (tcp://HOST:PORT): the records run as tasks on that cluster "
+                          "(same results; see docs/how-to/cluster.md)")
 
 
 def _run_discrepancy(args) -> int:
@@ -285,7 +337,7 @@ def _run_discrepancy(args) -> int:
     # workers are stopped by the entry's cleanup, instead of being left behind
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     doc = run_discrepancy(args.design, args.measured, args.out, profile=args.profile, seed=args.seed,
-                          workers=args.workers)
+                          workers=args.workers, scheduler=args.scheduler)
     print(f"verdict: {doc['verdict']}" + (f" ({', '.join(doc['effects'])})" if doc["effects"] else "")
           + f"; held-out gap {doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g} "
           f"(closed {100 * doc['gap']['closed_fraction']:.0f} %); {Path(args.out) / 'verdict.json'}")

@@ -79,9 +79,13 @@ def run_fit_cli(args) -> tuple[Path, list[str]]:
         cfg.setdefault("polish", prof.get("polish"))
     items = _merge_items(cfg.get("parameters"), parse_param_args(args.param)) or None
     kw = dict(design=args.design, bounds=items, predict=args.predict, out=args.out, seed=args.seed)
-    ga = dict(config=cfg, population=args.population, generations=args.generations)
+    ga = dict(config=cfg, population=args.population, generations=args.generations,
+              scheduler=getattr(args, "scheduler", None))
     if args.submodel != "friction" and (args.effect or args.holdout_cycles is not None):
         raise FitError("--effect and --holdout-cycles apply to friction fits only")
+    if args.submodel == "friction" and ga["scheduler"]:
+        raise FitError("--scheduler applies to the GA fits (valve, compliance, topmount); a friction fit is a "
+                       "least-squares fit on this machine")
     if args.submodel == "friction":
         fixed = {k: float(v) for k, v in (cfg.get("fixed") or {}).items()}
         res = fit_friction(args.data, fixed=fixed, effects=tuple(dict.fromkeys(args.effect)),

@@ -248,12 +248,13 @@ def _jacobian_ci(problem: _Problem, best: dict, specs=None) -> dict:
 
 
 def _fit_model(problem: _Problem, specs, out, label: str, submodel: str, settings, seed, extra_meta: dict,
-               plot_fn=None, fixed_overrides: dict | None = None, determined_fn=None) -> dict:
+               plot_fn=None, fixed_overrides: dict | None = None, determined_fn=None, scheduler=None) -> dict:
     from .calibration.optimisers import run
 
     keys = [s.key for s in specs]
     x0 = {k: problem.nominal(k) for k in keys}
-    res = run(problem.objective(keys), specs, settings, seed=seed, x0=x0, label=label, progress=True)
+    res = run(problem.objective(keys), specs, settings, seed=seed, x0=x0, label=label, progress=True,
+              scheduler=scheduler)
     ci = _jacobian_ci(problem, dict(res.best), specs)
     if determined_fn is not None:
         extra_meta = {**extra_meta, "determined": determined_fn(res.best, ci)}
@@ -326,7 +327,7 @@ def _flowbench_bench(cfg: dict) -> dict:
 
 
 def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None, predict=(), out=None,
-              config: dict | None = None, seed: int = 0, population=None, generations=None) -> dict:
+              config: dict | None = None, seed: int = 0, population=None, generations=None, scheduler=None) -> dict:
     """Fit one valve's stiffness a, b, c, d (and shim friction F_c) on a
     flow-bench record (``flow [m^3/s]`` input, ``dp [Pa]`` output, eq. 6.1)
     by the study's flow-bench fit (:func:`dampertwin.calibration.approach1.fit_valve`:
@@ -354,7 +355,7 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
     cal = {kind: [{"key": s.key, "bounds": [s.lo, s.hi], "scale": s.scale} for s in specs], "input_cutoff": cutoff}
     try:
         res = study_fit_valve(d, valve, frames[0], cal, settings, seed, bench=bench, progress=False,
-                              polish_settings=polish_settings)
+                              polish_settings=polish_settings, scheduler=scheduler)
     except ValueError as e:
         raise FitError(str(e)) from None
     files = []
@@ -398,7 +399,7 @@ def valve_determined(d: Design, valve: str, res, specs, cases, bench: dict) -> d
 
 
 def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
-                   current: float | None = None, population=None, generations=None) -> dict:
+                   current: float | None = None, population=None, generations=None, scheduler=None) -> dict:
     """Fit gas content and oil bulk modulus (default) on a damper-level sine
     record (displacement input, force output, eq. 6.2)."""
     from .calibration.approach1 import _record_input, _through_sensor
@@ -424,11 +425,11 @@ def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, conf
         series_plots(o, problem, sims, "rod force [N]", "compliance")
 
     return _fit_model(prob, specs, out, "compliance", "compliance", _settings(cfg, population, generations), seed,
-                      {"objective_name": "eq. 6.2 int |F_test - F_sim| dt [N*s]"}, plots)
+                      {"objective_name": "eq. 6.2 int |F_test - F_sim| dt [N*s]"}, plots, scheduler=scheduler)
 
 
 def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
-                 population=None, generations=None) -> dict:
+                 population=None, generations=None, scheduler=None) -> dict:
     """Fit the top-mount parameters on a top-mount record (displacement
     input, force output, eq. 6.3). With ``config['static'] = {run, order}``
     and that run in the record, the static curve is fitted by least squares
@@ -481,7 +482,7 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
 
     return _fit_model(prob, specs, out, "top mount", "topmount", _settings(cfg, population, generations), seed,
                       {"static_curve": kept, "objective_name": "eq. 6.3 int |F_test - F_sim| dt [N*s]"}, plots,
-                      fixed_overrides=fixed, determined_fn=determined)
+                      fixed_overrides=fixed, determined_fn=determined, scheduler=scheduler)
 
 
 def top_mount_determined(d: Design, best: dict, ci: dict, where: dict | None = None) -> dict:

@@ -5,6 +5,7 @@ design cases, or any parameter at chosen levels).
     dampertwin sweep +ofat=c_params                    # every C parameter at -20 % / +20 %
     dampertwin sweep factor=piston_intake.a,base_intake.a level=-0.2,0.2
     dampertwin sweep 'variant=glob(*)' hydra/launcher=slurm   # same sweep on SLURM (submitit)
+    dampertwin sweep --scheduler tcp://HOST:8786 'variant=glob(*)'   # same sweep on a Dask cluster
 
 Each job writes results/sweeps/<sweep>/<name>/ (time series and KPIs as
 Parquet with the resolved config and design hash in the metadata); a job
@@ -362,15 +363,21 @@ except ImportError:  # pragma: no cover
 _OUTCOME = {"all_failed": False}
 
 
-def multirun(overrides: list[str], root: str | Path | None = None) -> int:
+def multirun(overrides: list[str], root: str | Path | None = None, scheduler: str | None = None) -> int:
     """Run the Hydra multirun of ``conf/sweep.yaml`` with ``overrides``
     (``-m`` is added when missing). The project root is ``root``,
-    $DAMPERTWIN_ROOT or the repository around the working directory.
-    Returns 0, or 1 if every variant failed; a bad root is a UserError.
-    The command line is ``dampertwin sweep`` (cli.py)."""
+    $DAMPERTWIN_ROOT or the repository around the working directory. With a
+    Dask ``scheduler`` address the variants run on that cluster (the ``dask``
+    launcher, conf/hydra/launcher/dask.yaml). Returns 0, or 1 if every
+    variant failed; a bad root is a UserError. The command line is
+    ``dampertwin sweep`` (cli.py)."""
     import hydra
 
     root = project_root(root)
+    if scheduler:
+        if "'" in scheduler or '"' in scheduler:
+            raise UserError(f"sweep: --scheduler {scheduler!r}: expected an address like tcp://HOST:PORT")
+        overrides = [*overrides, "hydra/launcher=dask", f"hydra.launcher.scheduler='{scheduler}'"]
     # Hydra takes its options before the overrides: -m first, then the overrides in the user's order
     info = any(a in ("-h", "--help", "--hydra-help", "--info", "--cfg", "-c") for a in overrides)
     argv = [a for a in overrides if a not in ("-m", "--multirun")]

@@ -31,6 +31,7 @@ import pandas as pd
 from ..design import Design
 from ..errors import UserError
 from ..io import runs
+from ..parallel import DaskMap, release
 from . import sensitivity as sens
 from .approach1 import _Channel, _context, _need, _record_input, _records, specs_from_config, trapezoid_weights
 from .concurrent import BatchScorer, ConcurrentResult, GAGroup, run_concurrent
@@ -214,7 +215,7 @@ class TrainingProblem:
             R, why = self.records.evaluate(X)
             A = np.abs(R)
             J = sens.weighted_integrals(A, self.quad, W[:n_weighted])
-            total = A @ self.quad
+            total = sens.row_integrals(A, self.quad)  # row by row: the same bits in any batch
             return np.column_stack([J, *([total] * n_unweighted), total]), why
 
         return fn
@@ -225,9 +226,12 @@ def trapezoid_weights_per_case(cases) -> np.ndarray:
 
 
 def sensitivity(design: Design, measured: pd.DataFrame, cal: dict, settings: SensitivitySettings, seed: int, *,
-                bandwidth: float | None, max_wall_s: float | None, batch: int = 16, progress: bool = True):
+                bandwidth: float | None, max_wall_s: float | None, batch: int = 16, progress: bool = True,
+                scheduler: str | None = None):
     """Time-resolved grouped Sobol indices of the simulated training force
-    (valve groups only). Returns (problem, SobolResult, Y)."""
+    (valve groups only), the runs simulated ``batch`` at a time, locally or
+    (a Dask ``scheduler`` address) one batch per task on the cluster: the
+    same batches, the same numbers. Returns (problem, SobolResult, Y)."""
     from ..progress import progress as tqdm
 
     groups, _ = groups_from_config(design, cal)
@@ -236,6 +240,13 @@ def sensitivity(design: Design, measured: pd.DataFrame, cal: dict, settings: Sen
     prob = TrainingProblem(design, measured, specs, float(_need(cal, "input_cutoff", WHERE)), bandwidth, max_wall_s)
 
     def output(X):
+        if scheduler:
+            cluster = DaskMap(scheduler)
+            try:
+                return np.vstack([y for y, _ in cluster(prob.simulated, [X[lo:lo + batch]
+                                                                          for lo in range(0, len(X), batch)])])
+            finally:
+                cluster.close()
         parts = []
         for lo in tqdm(range(0, len(X), batch), desc="sensitivity runs", disable=not progress, leave=False):
             parts.append(prob.simulated(X[lo:lo + batch]))
@@ -264,9 +275,12 @@ def fit(design: Design, measured: pd.DataFrame, cal: dict, W: np.ndarray, group_
         raise UserError(f"sensitivity weights have shape {W.shape}; the training record needs "
                         f"({len(groups)}, {len(prob.measured)}): rerun the sensitivity stage on the same record")
     x0 = {s.key: design[s.key] for s in specs}
-    res = run_concurrent(groups + [comp], BatchScorer(prob.scorer(W, len(groups)), len(groups) + 2, scheduler),
-                         settings, seed, x0=x0, checkpoint=checkpoint, label="approach 2 (concurrent GAs)",
-                         progress=progress, context=prob.context)
+    scorer = BatchScorer(prob.scorer(W, len(groups)), len(groups) + 2, scheduler)
+    try:
+        res = run_concurrent(groups + [comp], scorer, settings, seed, x0=x0, checkpoint=checkpoint,
+                             label="approach 2 (concurrent GAs)", progress=progress, context=prob.context)
+    finally:
+        release(scorer)
     return res, prob
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..parallel import release
 from .ga import Evaluator, FitResult, GASettings, ParamSpec, bound_hits, run_ga
 from .polish import PolishSettings, polish
 
@@ -80,8 +81,12 @@ def run(problem, specs: list[ParamSpec], settings, *, seed: int = 0, x0: dict | 
     if not isinstance(settings, GASettings):
         raise TypeError(f"run: unknown optimiser settings {type(settings).__name__}")
     objective = problem.scores if hasattr(problem, "scores") else problem
-    res = run_ga(specs, Evaluator(objective, scheduler), settings, seed, x0=x0, checkpoint=checkpoint, label=label,
-                 progress=progress, context=context)
+    ev = Evaluator(objective, scheduler)
+    try:
+        res = run_ga(specs, ev, settings, seed, x0=x0, checkpoint=checkpoint, label=label, progress=progress,
+                     context=context)
+    finally:
+        release(ev)
     if polish_settings is not None:
         res = polish(problem, specs, res, polish_settings, label=f"{label} polish", progress=progress, nominal=x0)
     res.specs, res.records = specs, problem if hasattr(problem, "scores") else None

@@ -25,6 +25,7 @@ from typing import Callable
 import numpy as np
 
 from .ga import FitResult, ParamSpec
+from .sensitivity import row_integrals
 from .uncertainty import analyse, central_jacobian, fd_jacobian, other_optima
 
 F_SCALE_FRACTION = 0.1  # soft_l1 f_scale as a fraction of the median |weighted residual| at the start
@@ -92,7 +93,7 @@ class Records:
     def scores(self, X: np.ndarray) -> tuple[np.ndarray, list]:
         """(objective per row, reason per failed row): the GA's batch objective."""
         R, why = self.evaluate(X)
-        J = np.abs(R) @ self.weights
+        J = row_integrals(np.abs(R), self.weights)  # row by row: the same bits in any batch (a cluster's chunks)
         ok = np.all(np.isfinite(R), axis=1)
         return np.where(ok, J, np.nan), [w or (None if o else "non-finite residual") for w, o in zip(why, ok)]
 

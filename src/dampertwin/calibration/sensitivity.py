@@ -275,9 +275,19 @@ def weights(S1: np.ndarray, t: np.ndarray, settings: WeightSettings = WeightSett
 
 def weighted_integrals(abs_residual: np.ndarray, quad_weights: np.ndarray, W: np.ndarray) -> np.ndarray:
     """Eq. 7.1 for a batch: J[m, g] = sum_t W[g, t] |r[m, t]| w_t with w_t
-    the trapezoid weights [s]; NaN rows (failed runs) stay NaN."""
+    the trapezoid weights [s]; NaN rows (failed runs) stay NaN. Each row is
+    summed on its own (:func:`row_integrals`): a member's value does not
+    depend on the batch it is scored in (a population split over a cluster)."""
+    Wq = np.asarray(W, float) * np.asarray(quad_weights, float)[None, :]
     R = np.asarray(abs_residual, float)
-    return R @ (W * np.asarray(quad_weights, float)[None, :]).T
+    return np.column_stack([row_integrals(R, w) for w in Wq]) if len(Wq) else np.zeros((len(R), 0))
+
+
+def row_integrals(R: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """sum_t R[m, t] w[t] for each row m, row by row (numpy's pairwise sum
+    along the row), so a row's value is the same bits in any batch (a
+    matrix product's blocking depends on the batch size)."""
+    return (np.ascontiguousarray(R, float) * np.asarray(w, float)[None, :]).sum(axis=1)
 
 
 def figure(t: np.ndarray, res: SobolResult, signal: np.ndarray | None = None, signal_label: str = "force [N]",
@@ -306,4 +316,4 @@ def figure(t: np.ndarray, res: SobolResult, signal: np.ndarray | None = None, si
 
 
 __all__ = ["Group", "SobolResult", "WeightSettings", "salib_problem", "runs_needed", "sample", "first_order",
-           "analyse", "run", "weights", "weighted_integrals", "figure"]
+           "analyse", "run", "weights", "weighted_integrals", "row_integrals", "figure"]

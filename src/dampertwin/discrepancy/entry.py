@@ -147,10 +147,12 @@ def _flow_input_cutoff(conf: Path) -> float:
 
 
 def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 0, progress: bool = True,
-         tests: dict | None = None, workers: int | None = None) -> dict:
+         tests: dict | None = None, workers: int | None = None, scheduler: str | None = None) -> dict:
     """Run the workflow and write OUT atomically. Returns the verdict document.
     ``workers`` processes simulate the records in parallel (default: the
-    machine's cores; 1: in this process, e.g. inside a Dask task)."""
+    machine's cores; 1: in this process, e.g. inside a Dask task); with a
+    Dask ``scheduler`` address the records are tasks on that cluster
+    instead (``workers`` unused). Same numbers either way."""
     if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
         raise DiscrepancyError(f"--seed {seed!r}: expected a non-negative integer")
     check_out(Path(out), Path(measured), Path(design))
@@ -163,7 +165,12 @@ def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 
     prof = cfg["profiles"][profile]
     units, variants, notes = read_units(Path(measured), d, conf, cfg["features"], prof, tests)
     problem = Problem(units, cfg["features"], variants, progress=progress)
-    problem.executor = record_pool(workers)
+    if scheduler:
+        from ..parallel import DaskMap
+
+        problem.executor = DaskMap(scheduler).executor()
+    else:
+        problem.executor = record_pool(workers)
     done = False
     try:
         doc = _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)

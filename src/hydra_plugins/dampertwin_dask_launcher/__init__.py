@@ -1,0 +1,1 @@
+"""Hydra launcher ``dask`` of dampertwin's sweeps (conf/hydra/launcher/dask.yaml)."""
