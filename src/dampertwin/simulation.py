@@ -178,8 +178,9 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
     setups = [_setup(d, excitation, configuration, current, effects, bench_valve, bench) for d in designs]
     cfg = setups[0][0]
     if any(s[0] != cfg for s in setups):
-        raise ValueError("simulate_batch: all designs must switch the effects with states (active_valve_lag, "
-                         "valve_friction_current, oil_thermal) alike")
+        raise ValueError("simulate_batch: all designs must switch the effects with states (layout.STATE_EFFECTS: "
+                         "active_valve_lag, valve_friction_current, oil_thermal, aeration, fixture_resonance, "
+                         "active_valve_driver, gas_release) alike")
     P = np.vstack([s[1] for s in setups])
     problems = [parameter_problems(p, configuration) for p in P]
     invalid = np.array([bool(b) for b in problems])

@@ -73,6 +73,12 @@ def active_valve_flow(current, dp, currents, dps, flow) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def commanded_current(p):
+    """The test's active-valve current [A] (parameter CURRENT)."""
+    return p[_L.P.CURRENT]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def active_flow(p, aux, dp, current):
     """The active valve in the assembled model: flow [m^3/s] at dp [Pa] and
     the current [A] the valve sees (the test's, parameter CURRENT, unless

@@ -33,7 +33,7 @@ from __future__ import annotations
 from numba import njit
 
 from ..solver import rhs_signature
-from .active_valve import active_flow, opening_flow
+from .active_valve import active_flow, commanded_current, opening_flow
 from .active_valve_driver import effective_current
 from .active_valve_lag import opening_pressure
 from .aeration import aeration
@@ -104,7 +104,7 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     # active valve: static map (4.4); the effects spool friction and lag move its opening
     # (the map's opening at p_o, under the actual drop: active_valve.opening_flow)
     dp_a = P_b - P_res
-    I_a = p[P.CURRENT]
+    I_a = commanded_current(p)
     if extended:  # active_valve_driver: the valve sees the coil's effective current (the command when off)
         I_a = effective_current(t, y, oe + EX.i_coil, p, dy)
     Q_a = active_flow(p, aux, dp_a, I_a)
