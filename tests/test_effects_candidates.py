@@ -17,7 +17,7 @@ import yaml
 from scipy import signal
 from scipy.integrate import solve_ivp
 
-from dampertwin import Excitation, simulate
+from dampertwin import simulate
 from dampertwin.design import loads
 from dampertwin.discrepancy.entry import load_config
 from dampertwin.discrepancy.workflow import catalogue
@@ -72,7 +72,6 @@ def test_the_workflow_lists_the_new_candidates(base):
         assert c.effects == [name] and {p.key for p in c.params} == keys, name
         assert all(p.lo < c.typical[p.key] < p.hi for p in c.params), name
         assert cfg["separating_tests"][name] in ("random", "monosine", "compliance"), name
-    assert "fixture_resonance" not in cands or cfg["separating_tests"]["fixture_resonance"] == "random"
 
 
 # ------------------------------------------------------------ off is off, beside another state effect
@@ -218,7 +217,7 @@ def test_released_gas_conserves_the_chambers_mass(base):
         h = 1e-6
         dD = (_D(P + h * dy[L.S.P_b], th + h * dy[o], p) - _D(P, th, p)) / h
         terms = abs(_D(P, th + h * dy[o], p) - _D(P, th, p)) / h
-        assert abs(dP := dy[L.S.P_b]) > 0 and abs(dD) < 1e-5 * terms, (dP, dD, terms)
+        assert dy[L.S.P_b] != 0.0 and abs(dD) < 1e-5 * terms, (dy[L.S.P_b], dD, terms)
 
 
 def test_gas_release_tends_to_the_thesis_law_as_tau_goes_to_zero(base):
