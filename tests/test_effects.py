@@ -289,11 +289,17 @@ KPI = {"piston_leakage": _kpi_leak, "active_valve_lag": _kpi_lag, "aeration": _k
        "top_mount_backlash": _kpi_backlash}
 
 
+# the candidates of issue 34 (acceptance 3) have their KPI tests in tests/test_effects_candidates.py
+KPI_ELSEWHERE = {"fixture_resonance", "active_valve_driver", "gas_release"}
+
+
 def test_every_new_effect_has_a_kpi_test():
-    assert set(KPI) == set(NEW)
+    from test_effects_candidates import KPI as CANDIDATE_KPI
+    assert set(CANDIDATE_KPI) == KPI_ELSEWHERE
+    assert set(KPI) | KPI_ELSEWHERE == set(NEW) and not set(KPI) & KPI_ELSEWHERE
 
 
-@pytest.mark.parametrize("effect", NEW)
+@pytest.mark.parametrize("effect", sorted(set(NEW) - KPI_ELSEWHERE))
 def test_effect_moves_its_kpi(base, effect):
     """Switched on at its typical magnitude, the effect moves the KPI of
     EFFECTS_LIBRARY in the documented direction."""
@@ -304,7 +310,8 @@ def test_state_effects_run_in_the_extended_configuration(base):
     p = pack(_on(base, "active_valve_lag"))
     assert L.variant(L.CFG_MODULE, p) == L.CFG_MODULE_X
     assert L.variant(L.CFG_MODULE, pack(_on(base, "valve_friction_current"))) == L.CFG_MODULE_X
-    assert L.N_STATES[L.CFG_MODULE_X] == L.N_STATES[L.CFG_MODULE] + 4  # opening lag, spool, oil temperature, free air
+    # opening lag, spool, oil temperature, free air, load cell (2), coil and eddy currents (2), gas shares (3)
+    assert L.N_STATES[L.CFG_MODULE_X] == L.N_STATES[L.CFG_MODULE] + 11
     r = simulate(_on(base, "oil_thermal"), _sine(F13), "module")
     assert r.ok and "top mount force [N]" in r.channels
 

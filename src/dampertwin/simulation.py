@@ -79,7 +79,7 @@ def _channels(cfg: int, out: np.ndarray) -> dict[str, np.ndarray]:
     return {name: out[:, i] for i, (name, _) in enumerate(L.OUTPUTS) if i not in skip}
 
 
-def _setup(design, excitation, configuration, current, effects, bench_valve, bench=None):
+def _setup(design, excitation, configuration, current, effects, bench_valve, bench=None, step=None):
     if configuration not in L.CONFIGURATIONS:
         raise ValueError(f"configuration must be one of {list(L.CONFIGURATIONS)}, got {configuration!r}")
     cfg = L.CONFIGURATIONS[configuration]
@@ -95,7 +95,10 @@ def _setup(design, excitation, configuration, current, effects, bench_valve, ben
         if not lo - 1e-9 <= current <= hi + 1e-9:
             raise ValueError(f"current {current!r} A is outside the active-valve map of design {design.name!r} "
                              f"({lo:g}-{hi:g} A); the map is not extrapolated")
-    p = pack(design, current=current, effects=effects, bench_valve=bench_valve, **(bench or {}))
+    for name, v in (step or {}).items():
+        if v is not None and not (isinstance(v, (int, float, np.floating)) and np.isfinite(v)):
+            raise ValueError(f"{name} must be a finite number, got {v!r}")
+    p = pack(design, current=current, effects=effects, bench_valve=bench_valve, **(bench or {}), **(step or {}))
     p[L.P.EX_T0] = excitation.t0
     p[L.P.EX_DT] = excitation.dt
     return L.variant(cfg, p), p  # the extended configuration when an effect with states is on
@@ -129,15 +132,21 @@ def simulate(design: Design, excitation: Excitation, configuration: str = "modul
              current: float = 1.6, effects: dict | None = None, bench_valve: str | None = None,
              rate: float = DEFAULT_RATE, duration: float | None = None, rtol: float = DEFAULT_RTOL,
              atol: float | None = None, max_steps: int = 2_000_000, max_wall_s: float | None = 600.0,
-             h_max: float = 1e-3, bench: dict | None = None, method: str | None = None) -> Result:
+             h_max: float = 1e-3, bench: dict | None = None, method: str | None = None,
+             current_before: float | None = None, current_step_time: float | None = None) -> Result:
     """Simulate one test. ``configuration`` is "valve" (flow bench; needs
     ``bench_valve``), "damper" (rod fixed), "module" (rod on the top mount) or
     "topmount" (the top mount alone, deflection prescribed).
     Outputs are sampled at ``rate`` [Hz]; ``method`` is the integrator
     ("ros34pw2" or "rodas4"; default: by rtol, :func:`default_method`). A run that hits the step or
     wall-time cap returns with ``result.ok`` False and NaN after the stop.
-    ``bench`` sets the flow bench (``bench_volume`` [m^3], ``bench_back_pressure`` [Pa])."""
-    cfg, p = _setup(design, excitation, configuration, current, effects, bench_valve, bench)
+    ``bench`` sets the flow bench (``bench_volume`` [m^3], ``bench_back_pressure`` [Pa]).
+    ``current_before`` [A]: the current commanded until ``current_step_time`` [s] (default the
+    record's start), ``current`` after it: a current step, which only the effect
+    active_valve_driver sees (default: no step)."""
+    step = {"current_before": current_before,
+            "current_step_time": excitation.t0 if current_step_time is None else current_step_time}
+    cfg, p = _setup(design, excitation, configuration, current, effects, bench_valve, bench, step)
     bad = parameter_problems(p, configuration)
     if bad:
         raise ValueError(f"design {design.name!r} cannot be simulated in the {configuration!r} configuration: "
@@ -169,8 +178,9 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
     setups = [_setup(d, excitation, configuration, current, effects, bench_valve, bench) for d in designs]
     cfg = setups[0][0]
     if any(s[0] != cfg for s in setups):
-        raise ValueError("simulate_batch: all designs must switch the effects with states (active_valve_lag, "
-                         "valve_friction_current, oil_thermal) alike")
+        raise ValueError("simulate_batch: all designs must switch the effects with states (layout.STATE_EFFECTS: "
+                         "active_valve_lag, valve_friction_current, oil_thermal, aeration, fixture_resonance, "
+                         "active_valve_driver, gas_release) alike")
     P = np.vstack([s[1] for s in setups])
     problems = [parameter_problems(p, configuration) for p in P]
     invalid = np.array([bool(b) for b in problems])

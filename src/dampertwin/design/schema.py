@@ -25,7 +25,7 @@ SI_UNITS = frozenset(
     {
         "-", "m", "m^2", "m^3", "kg", "s", "K", "A", "N", "Pa", "rad",
         "1/s", "1/m", "m/s", "m^2/s", "m^3/s", "kg/m^3", "N/m", "N*s/m",
-        "1/K", "J/K", "W/K", "N/A", "m^2/N", "N/Pa",
+        "1/K", "J/K", "W/K", "N/A", "m^2/N", "N/Pa", "Hz", "A/s",
     }
 )
 
@@ -166,6 +166,10 @@ EFFECTS: dict[str, str] = {
     "rod_friction_asymmetric": "direction-dependent film friction of the rod seal (rebound vs compression)",
     "top_mount_backlash": "free play of the top mount (smoothed dead zone)",
     "seal_friction_pressure": "rod seal friction growing with the rebound-chamber pressure",
+    "fixture_resonance": "the rig's fixture resonating on the load cell (measurement chain: the force channel)",
+    "active_valve_driver": "coil and current-driver dynamics of the active valve (shows only with current steps)",
+    "gas_release": "the undissolved gas share of eq. 4.14 as a state per chamber, released / dissolved at finite "
+                   "rates",
 }
 
 # Parameters of the optional effects (design key ``effect_parameters:``),
@@ -305,4 +309,11 @@ EFFECT_PARAMETERS.update({
     "top_mount_backlash.eps": ("m", LIFT),
     "seal_friction_pressure.k_p": ("N/Pa", NONNEG),
     "seal_friction_pressure.p_reg": ("Pa", PRESSURE),
+    "fixture_resonance.f_n": ("Hz", Range(50.0, 1e4, True, True)),
+    "fixture_resonance.zeta": ("-", Range(0.0, 1.0, False, True)),
+    "active_valve_driver.tau_d": ("s", POS),
+    "active_valve_driver.rate_max": ("A/s", POS),
+    "active_valve_driver.tau_e": ("s", POS),
+    "gas_release.tau_rel": ("s", POS),
+    "gas_release.tau_dis": ("s", POS),
 })

@@ -73,10 +73,17 @@ def active_valve_flow(current, dp, currents, dps, flow) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def active_flow(p, aux, dp):
+def commanded_current(p):
+    """The test's active-valve current [A] (parameter CURRENT)."""
+    return p[_L.P.CURRENT]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def active_flow(p, aux, dp, current):
     """The active valve in the assembled model: flow [m^3/s] at dp [Pa] and
-    the test's current (parameter CURRENT), map in ``aux``."""
-    return map_flow(p[_L.P.CURRENT], dp, aux)
+    the current [A] the valve sees (the test's, parameter CURRENT, unless
+    active_valve_driver), map in ``aux``."""
+    return map_flow(current, dp, aux)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -94,14 +101,15 @@ def map_conductance(current, dp_open, aux):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def opening_flow(p, aux, dp_open, dp, Q_map):
+def opening_flow(p, aux, dp_open, dp, Q_map, current):
     """Flow [m^3/s] through the active valve held at the opening of the static map at dp_open,
     under the pressure drop dp [Pa]: G(I, dp_open) r(dp). Its sign is that of dp whatever
     dp_open (passive: Q dp >= 0); at dp_open = dp it is the map's flow (|dp| >= DP_SMALL), and
-    then the map's own value Q_map is returned (bit-identical when the effects are off)."""
+    then the map's own value Q_map is returned (bit-identical when the effects are off).
+    ``current`` [A]: the current the valve sees."""
     if dp_open == dp:
         return Q_map
-    return map_conductance(p[_L.P.CURRENT], dp_open, aux) * dp / _root_weight(dp)
+    return map_conductance(current, dp_open, aux) * dp / _root_weight(dp)
 
 
 from . import layout as _L  # noqa: E402  (bottom: layout reads this file's declarations first)

@@ -93,6 +93,14 @@ def moduli(p, P_r, P_c, P_b, P_res, K_oil, T):
     K_r = oil_modulus(P_r, p, K_oil, T)
     K_c = oil_modulus(P_c, p, K_oil, T)
     K_b = oil_modulus(P_b, p, K_oil, T)
+    return structure(p, K_r, K_c, K_b, P_r, P_c, P_b, P_res)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def structure(p, K_r, K_c, K_b, P_r, P_c, P_b, P_res):
+    """Effective moduli [Pa] of the three chambers from their fluids' moduli
+    K_r, K_c, K_b [Pa]: in series with the walls (eq. 4.13, 4.17-4.18), times
+    the cavitation factor."""
     if p[_L.P.E_WALL] > 0.5:
         K_c = series_bulk_modulus(K_c, wall_bulk_modulus(p[_L.P.PSI_PT], P_c - P_res, 1.0))
         K_b = series_bulk_modulus(K_b, wall_bulk_modulus(p[_L.P.PSI_TT], P_b - P_res, p[_L.P.RATIO_TT]))

@@ -22,7 +22,8 @@ state to a submodel does not touch this file.
 
 The effects the thesis lacks (docs "Effect library") hook in here, each a
 call into its own file that returns its input unchanged when switched off.
-The four with states (active_valve_lag, valve_friction_current, oil_thermal, aeration) run only
+The effects with states (active_valve_lag, valve_friction_current, oil_thermal, aeration,
+fixture_resonance, active_valve_driver, gas_release) run only
 in the extended configurations ``rhs_damper_x`` / ``rhs_module_x`` (layout.variant), whose
 effect states follow the damper / module states.
 """
@@ -32,10 +33,13 @@ from __future__ import annotations
 from numba import njit
 
 from ..solver import rhs_signature
-from .active_valve import active_flow, opening_flow
+from .active_valve import active_flow, commanded_current, opening_flow
+from .active_valve_driver import effective_current
 from .active_valve_lag import opening_pressure
 from .aeration import aeration
 from .bench import upstream_modulus, upstream_pressure_rate
+from .fixture_resonance import load_cell
+from .gas_release import gas_release
 from .chambers import chamber_volumes, moduli, pressure_rate, rod_force
 from .fluid import gas_spring_pressure
 from .inputs import hermite
@@ -100,11 +104,14 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     # active valve: static map (4.4); the effects spool friction and lag move its opening
     # (the map's opening at p_o, under the actual drop: active_valve.opening_flow)
     dp_a = P_b - P_res
-    Q_a = active_flow(p, aux, dp_a)
+    I_a = commanded_current(p)
+    if extended:  # active_valve_driver: the valve sees the coil's effective current (the command when off)
+        I_a = effective_current(t, y, oe + EX.i_coil, p, dy)
+    Q_a = active_flow(p, aux, dp_a, I_a)
     if extended:
-        p_o = spool_pressure(y, oe + EX.p_spool, p, dp_a, dy)
+        p_o = spool_pressure(y, oe + EX.p_spool, p, dp_a, dy, I_a)
         p_o = opening_pressure(y, oe + EX.p_open, p, p_o, dy)
-        Q_a = opening_flow(p, aux, p_o, dp_a, Q_a)
+        Q_a = opening_flow(p, aux, p_o, dp_a, Q_a, I_a)
 
     # rod friction (eq. 4.38-4.41) and rod force (eq. 4.1); oil_thermal heats with F_d s'
     F_mu = friction(y, SB.rod_friction, p, sd, dy, P_r)
@@ -119,6 +126,12 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     dV_r = -A_r * sd
     dV_c = A_b * sd
     dV_b = 0.0
+    if extended:  # gas_release: eq. 4.14's gas share a state per chamber (frozen modulus, released-gas source)
+        K_r, K_c, K_b, S_r, S_c, S_b = gas_release(y, oe + EX.theta_r, p, K_r, K_c, K_b, P_r, P_c, P_b, P_res,
+                                                   K_oil, T_oil, V_r, V_c, dy)
+        dV_r -= S_r
+        dV_c -= S_c
+        dV_b -= S_b
     if extended:  # aeration: free air in the compression chamber, released / dissolved at finite rates
         K_c, dV_air = aeration(y, oe + EX.V_air, p, K_c, P_c, V_c, dy)
         dV_c -= dV_air
@@ -145,6 +158,12 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     out[O.S] = s
     out[O.F_D] = F_d
     out[O.F_TM] = F_tm
+    if extended:  # fixture_resonance: the load cell's reading of the force on the fixture (F_d or F_tm when off)
+        F_lc = load_cell(y, oe + EX.F_cell, p, F_tm if module else F_d, dy)
+        if module:
+            out[O.F_TM] = F_lc
+        else:
+            out[O.F_D] = F_lc
     out[O.A_ROD] = -a_rod  # reported positive up (THESIS-ERRATA 5)
     out[O.F_MU] = F_mu
     out[O.P_R] = P_r

@@ -14,9 +14,9 @@ from enum import IntEnum
 
 import numpy as np
 
-from . import (active_valve, active_valve_lag, aeration, bench, chambers, fluid, inputs, oil_thermal, piston_leakage,
-               rod, rod_friction, rod_friction_asymmetric, seal_friction_pressure, top_mount, top_mount_backlash,
-               valve_friction_current, valves)
+from . import (active_valve, active_valve_driver, active_valve_lag, aeration, bench, chambers, fixture_resonance, fluid,
+               gas_release, inputs, oil_thermal, piston_leakage, rod, rod_friction, rod_friction_asymmetric,
+               seal_friction_pressure, top_mount, top_mount_backlash, valve_friction_current, valves)
 
 from .declarations import Parameter, State, index_enum
 from .valves import SHIM_VALVES, V_SIZE, VALVE_NAMES, valve_states
@@ -24,7 +24,7 @@ from .valves import SHIM_VALVES, V_SIZE, VALVE_NAMES, valve_states
 # ---- parameters: every submodel's declarations, then four valve blocks
 SUBMODELS = (chambers, fluid, valves, piston_leakage, rod_friction, top_mount, rod, active_valve, bench, inputs,
              active_valve_lag, aeration, valve_friction_current, oil_thermal, rod_friction_asymmetric,
-             top_mount_backlash, seal_friction_pressure)
+             top_mount_backlash, seal_friction_pressure, fixture_resonance, active_valve_driver, gas_release)
 PARAMETERS: tuple[Parameter, ...] = tuple(p for m in SUBMODELS for p in m.PARAMETERS)
 P = index_enum("P", [p.name for p in PARAMETERS] + ["VALVES"], __name__)
 N_PARAMS = len(PARAMETERS) + 4 * V_SIZE
@@ -41,7 +41,8 @@ CONFIGURATIONS = {"valve": CFG_VALVE, "damper": CFG_DAMPER, "module": CFG_MODULE
 CFG_DAMPER_X, CFG_MODULE_X = 5, 6
 EXTENDED = {CFG_DAMPER: CFG_DAMPER_X, CFG_MODULE: CFG_MODULE_X}
 BASE_CONFIGURATION = {CFG_DAMPER_X: CFG_DAMPER, CFG_MODULE_X: CFG_MODULE}
-STATE_EFFECTS = ("E_AV_LAG", "E_VALVE_FRICTION", "E_THERMAL", "E_AERATION")  # switches of the effects with states
+STATE_EFFECTS = ("E_AV_LAG", "E_VALVE_FRICTION", "E_THERMAL", "E_AERATION",  # switches of the effects with states
+                 "E_FIXTURE", "E_AV_DRIVER", "E_GAS_RELEASE")
 
 # A configuration is a sequence of state blocks, one per submodel instance;
 # each submodel reads and writes its own states at its block's offset.
@@ -53,7 +54,8 @@ _DAMPER_BLOCKS = (
 _MODULE_BLOCKS = _DAMPER_BLOCKS + (("rod", rod.STATES), ("top_mount", top_mount.STATES))
 _BENCH_BLOCKS = (("bench", bench.STATES), ("valve", bench.VALVE_STATES))
 _TOPMOUNT_BLOCKS = (("top_mount", top_mount.STATES),)
-_EFFECT_STATES = active_valve_lag.STATES + valve_friction_current.STATES + oil_thermal.STATES + aeration.STATES
+_EFFECT_STATES = (active_valve_lag.STATES + valve_friction_current.STATES + oil_thermal.STATES + aeration.STATES
+                  + fixture_resonance.STATES + active_valve_driver.STATES + gas_release.STATES)
 _EFFECT_BLOCKS = (("effects", _EFFECT_STATES),)
 
 

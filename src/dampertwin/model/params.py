@@ -38,10 +38,13 @@ def _value(decl, design: Design, effects: dict) -> float:
 
 def pack(design: Design, current: float = 1.6, effects: dict | None = None,
          bench_valve: str | None = None, bench_volume: float = BENCH_VOLUME,
-         bench_back_pressure: float = BENCH_BACK_PRESSURE) -> np.ndarray:
+         bench_back_pressure: float = BENCH_BACK_PRESSURE, current_before: float | None = None,
+         current_step_time: float = 0.0) -> np.ndarray:
     """Parameter vector of the compiled model (layout.P), SI units.
 
     ``current`` is the active-valve current [A] (a test condition);
+    ``current_before`` the current [A] commanded until ``current_step_time``
+    [s] (default ``current``: no step; read only by active_valve_driver);
     ``effects`` overrides the design's effect switches."""
     eff = dict(design.effects)
     if effects:
@@ -54,6 +57,8 @@ def pack(design: Design, current: float = 1.6, effects: dict | None = None,
         raise ValueError(f"design {design.name!r}: effects {sorted(missing)} not set")
     p = design.memo(("pack", tuple(sorted(eff.items()))), lambda: _pack_design(design, eff)).copy()
     p[P.CURRENT] = current
+    p[P.CURRENT0] = current if current_before is None else current_before
+    p[P.T_STEP] = current_step_time
     p[P.BENCH_V] = bench_volume
     p[P.BENCH_P_DOWN] = bench_back_pressure
     p[P.BENCH_VALVE] = VALVE_NAMES.index(bench_valve) if bench_valve else 0
@@ -118,6 +123,14 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
              "valve_friction_current.A_spool, tau_s and dp_reg must be > 0")
     if configuration in ("damper", "module") and p[P.E_AV_LAG] > 0.5:
         need(p[P.AV_TAU] > 0, f"active_valve_lag.tau = {p[P.AV_TAU]!r}; expected > 0")
+    if configuration in ("damper", "module") and p[P.E_FIXTURE] > 0.5:
+        need(p[P.FX_FN] > 0 and p[P.FX_ZETA] > 0,
+             f"fixture_resonance.f_n = {p[P.FX_FN]!r}, zeta = {p[P.FX_ZETA]!r}; expected both > 0")
+    if configuration in ("damper", "module") and p[P.E_AV_DRIVER] > 0.5:
+        need(p[P.DRV_TAU] > 0 and p[P.DRV_RATE] > 0 and p[P.DRV_TAU_E] > 0,
+             "active_valve_driver.tau_d, rate_max and tau_e must be > 0")
+    if configuration in ("damper", "module") and p[P.E_GAS_RELEASE] > 0.5:
+        need(p[P.GR_TREL] > 0 and p[P.GR_TDIS] > 0, "gas_release.tau_rel and tau_dis must be > 0")
     if configuration == "module":
         need(p[P.M_ROD] > 0, f"geometry.M_rod = {p[P.M_ROD]!r}; expected > 0")
         need(p[P.TM_FLD0] > 0, f"top_mount.F_LD[0] = {p[P.TM_FLD0]!r}; expected > 0 (static stiffness)")
@@ -128,8 +141,11 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
 class EffectRecord:
     """One switchable effect of the model: what it is, its source, whether
     the thesis has it (its own optional effect) or it is new, the KPI it
-    moves with the documented direction, and the test that shows it
-    (the docs page "Effect library" is generated from these, ``effects_table``)."""
+    moves with the documented direction, the test that shows it, and which
+    mechanism(s) of the virtual laboratory's truth (``dampertwin.truth``; its
+    switches ``truth.params.EFFECTS`` in brackets) it approximates: the
+    expected answer of the discrepancy matrix (the docs page "Effect
+    library" is generated from these, ``effects_table``)."""
 
     name: str
     description: str
@@ -138,10 +154,12 @@ class EffectRecord:
     kpi: str
     direction: str
     test: str
+    truth: str = ""
 
 
 _T = "test_simulation.py::test_effect_switch"
 _E = "test_effects.py::test_effect_moves_its_kpi"
+_C = "test_effects_candidates.py::test_candidate_moves_its_kpi"
 _M13 = "damper, mono-sine 13 Hz +-5 mm"
 _M16 = "damper, mono-sine 16 Hz +-5 mm"
 # Every effect switch of the design (``effects:``).
@@ -168,23 +186,27 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "top-mount force", "stiffer and damped", _T),
     EffectRecord("piston_leakage", "laminar leakage past a worn piston band",
                  "White, Viscous Fluid Flow, eq. 3-44", False,
-                 f"rebound peak force ({_M13})", "lower", _E),
+                 f"rebound peak force ({_M13})", "lower", _E,
+                 truth='eccentric annular leakage past the worn piston band with temperature-dependent viscosity (truth/chambers.py band_leakage, value chambers.BAND_H; also its shear force)'),
     EffectRecord("active_valve_lag", "first-order lag of the active valve's opening behind the static opening of "
                  "its P/Q map (the flow keeps the sign of its pressure drop: passive); thesis 7.3, first discrepancy",
                  "Savaresi et al. 2010, ch. 2", False,
                  f"third-tube peak pressure; compression peak force ({_M16})",
-                 "higher (the valve opens late: the pressure overshoots)", _E),
+                 "higher (the valve opens late: the pressure overshoots)", _E,
+                 truth="the pilot-operated solenoid valve's pilot poppet, control chamber (filled through A_F) and main stage (truth/solenoid.py; always on, not a switch)"),
     EffectRecord("aeration", "free air in the compression chamber, a state released below and dissolved above "
                  "its Henry equilibrium at finite rates (memory of low-pressure phases; thesis 7.3: aeration of the "
                  "compression chamber in rebound); was a static Boyle law, a re-parameterised gas content",
                  "Gholizadeh et al., IJFP 13 (2012); Duym, VSD 33 (2000)", False,
                  f"force-velocity phase lag; compression peak force ({_M16})",
-                 "phase lag larger; compression peak lower (force builds up later)", _E),
+                 "phase lag larger; compression peak lower (force builds up later)", _E,
+                 truth="entrained gas above the nominal content (value alpha_free) released / dissolved at finite rates in each chamber [gas_dissolution]; the compression chamber's share"),
     EffectRecord("valve_friction_current", "Coulomb friction of the active valve's spool with memory (a stuck "
                  "spool holds its opening: opening and closing branches 2 F_f / A_sp apart), linear in the current, "
                  "growing or shrinking; thesis 7.3, third discrepancy (valve friction at the end of rebound)",
                  "Al-Bender et al. 2005 (Maxwell slip); Manring 2005, 4.6", False,
-                 f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E),
+                 f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E,
+                 truth="no friction in the truth's valve: the nearest are the pilot-operated valve's opening / closing hysteresis (control-chamber filling) and its saturating, current-dependent magnetic force (truth/solenoid.py)"),
     EffectRecord("oil_thermal", "oil temperature state: the viscosity and the oil's (not the gas's or the wall's) "
                  "bulk modulus follow the heating, the oil expands (volume source in eq. 4.9), the gas heats "
                  "(ideal gas); output `oil temperature [K]` (the warm-up test's thermocouple); not named by the "
@@ -193,20 +215,51 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "oil temperature, reserve pressure and compression peak force in the last cycle (damper, warm-up "
                  "excitation 8 Hz +-10 mm for 10 s, C_th 400 J/K; energy balance C_th dT + hA int(T - T_amb) dt "
                  "= int F s' dt)",
-                 "> 5 K warmer; reserve pressure up by more than T/T0; compression peak larger", _E),
+                 "> 5 K warmer; reserve pressure up by more than T/T0; compression peak larger", _E,
+                 truth='oil heating with the dissipated power, Walther viscosity, expansion, gas heating [oil_thermal, gas_heat_exchange]'),
     EffectRecord("rod_friction_asymmetric", "rod seal film friction (Stribeck excess and viscous part) higher in "
                  "rebound than in compression; reformulated: a direction-dependent Coulomb level is, while the rod "
                  "slides, a constant offset a F_c (degenerate with the precharge / load-cell offset), the film "
                  "part adds a s2 |v|, growing with the speed; not named by the thesis",
                  "Mueller & Nau 1998, ch. 9; Olsson et al., EJC 4 (1998), 3.6", False,
                  f"friction force at the peak speeds in rebound / compression ({_M13})",
-                 "rebound larger, compression smaller, by ~a s2 |v| (no offset fits it)", _E),
+                 "rebound larger, compression smaller, by ~a s2 |v| (no offset fits it)", _E,
+                 truth="the rod seal's lip loaded by the rebound-chamber pressure and its oil film (truth/seal.py K_PR, C_V): higher in rebound"),
     EffectRecord("top_mount_backlash", "free play of the top mount (smoothed dead zone)",
                  "Nordin & Gutman, Automatica 38 (2002)", False,
-                 "top-mount force near zero deflection (top-mount sine 10 Hz +-1 mm)", "lower", _E),
+                 "top-mount force near zero deflection (top-mount sine 10 Hz +-1 mm)", "lower", _E,
+                 truth="no free play in the truth's mount today; nearest: the rubber's amplitude-dependent stiffness [payne]"),
     EffectRecord("seal_friction_pressure", "rod seal friction growing with the rebound-chamber pressure",
                  "Mueller & Nau 1998, ch. 9", False,
-                 f"friction force magnitude ({_M13})", "larger", _E),
+                 f"friction force magnitude ({_M13})", "larger", _E,
+                 truth="the rod seal's pressure-loaded lip, F_max = F0 + K_PR (P_r - P_atm)+ (truth/seal.py; value seal.K_PR)"),
+    EffectRecord("fixture_resonance", "the rig's fixture (crosshead) resonating on the load cell: the force "
+                 "channel reads the force through a base-excited 2nd-order transmissibility (f_n, zeta); a "
+                 "measurement-chain effect, the damper is unchanged; thesis 7.3, fourth suspect (mounting "
+                 "structure above 500 Hz)",
+                 "Thomson & Dahmouni 1998, 3.5; Harris 2010, ch. 2", False,
+                 "force spectrum near f_n (module, random test); load-cell reading over a force step",
+                 "higher near f_n (x sqrt(1 + 4 zeta^2) / (2 zeta) at f_n), unchanged below f_n / 10", _C,
+                 truth="the test fixture: a crosshead mass on the load cell's stiffness and damping "
+                       "(truth/fixture.py) [fixture]"),
+    EffectRecord("active_valve_driver", "the active valve's coil and current driver: the effective current "
+                 "follows the command through a rate-limited first-order current loop and an eddy-current lag; "
+                 "INVISIBLE in every standard test (the current is constant there): it shows only after a "
+                 "current step; thesis 7.3, first discrepancy (active-valve dynamics)",
+                 "Savaresi et al. 2010, ch. 2; Brauer 2014, ch. 9", False,
+                 "third-tube pressure and rod force after a current step 0.32 -> 1.6 A (damper, 16 Hz)",
+                 "follow the step late (closer to the 0.32 A run in the first ms); none at constant current", _C,
+                 truth="the PI current driver with its saturating supply and the R-L coil (truth/solenoid.py "
+                       "coil) [current_driver]; invisible at constant current in the truth too"),
+    EffectRecord("gas_release", "the undissolved gas share of eq. 4.14 a state per chamber, released below and "
+                 "dissolved above its equilibrium at finite rates: no gas added (unlike aeration), the frozen "
+                 "modulus is stiffer in fast cycles, with a memory of low-pressure phases; tau -> 0 is the "
+                 "thesis' law",
+                 "Gholizadeh et al., IJFP 13 (2012) 7; Zhou et al., J. Fluids Eng. 135 (2013)", False,
+                 f"force-velocity phase lag; compression peak force ({_M16})",
+                 "phase lag smaller; compression peak larger (the gas does not dissolve within a cycle)", _C,
+                 truth="entrained gas per chamber relaxing to Henry's equilibrium, released over ~1 s and dissolved "
+                       "over ~20 s (truth/gas.py free_gas_rate) [gas_dissolution]"),
 )}
 assert set(EFFECTS_LIBRARY) == set(EFFECT_INDEX), sorted(set(EFFECTS_LIBRARY) ^ set(EFFECT_INDEX))
 
@@ -214,12 +267,13 @@ assert set(EFFECTS_LIBRARY) == set(EFFECT_INDEX), sorted(set(EFFECTS_LIBRARY) ^ 
 def effects_table(design: Design) -> str:
     """The "Effect library" table (markdown, docs/explanation/effects.md) from EFFECTS_LIBRARY and
     the design's effect parameters; rendered by scripts/mkdocs_hooks.py."""
-    rows = ["| effect | what it is | source | parameters | what it should change (test) | off in baseline |",
-            "|---|---|---|---|---|---|"]
+    rows = ["| effect | what it is | source | parameters | what it should change (test) | approximates in the truth "
+            "lab | off in baseline |", "|---|---|---|---|---|---|---|"]
     for r in EFFECTS_LIBRARY.values():
         if r.thesis:
             continue
         eps = ", ".join(f"`{e.key}` ({e.type}, typ. {e.typical:g} {e.unit})" for e in design.effect_parameters(r.name))
         off = "yes" if not design.effects[r.name] else "no"
-        rows.append(f"| `{r.name}` | {r.description} | {r.source} | {eps} | {r.kpi}: {r.direction} | {off} |")
+        rows.append(f"| `{r.name}` | {r.description} | {r.source} | {eps} | {r.kpi}: {r.direction} | {r.truth} "
+                    f"| {off} |")
     return "\n".join(rows) + "\n"

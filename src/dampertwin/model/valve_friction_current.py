@@ -86,11 +86,12 @@ def spool_rate(p_s, dp, dp_f, tau_s, eps):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def spool_pressure(y, o, p, dp, dy):
+def spool_pressure(y, o, p, dp, dy, current):
     """The spool in the assembled (extended) model: returns the pressure drop [Pa] whose static
-    opening the valve has (its state at y[o]) and writes dy[o]; ``dp`` itself when off."""
+    opening the valve has (its state at y[o]) and writes dy[o]; ``dp`` itself when off.
+    ``current`` [A]: the current the valve sees (p[P.CURRENT] unless active_valve_driver)."""
     if p[_L.P.E_VALVE_FRICTION] > 0.5:
-        F_f = friction_force(p[_L.P.VF_F0], p[_L.P.VF_F1], p[_L.P.VF_I1], p[_L.P.CURRENT])
+        F_f = friction_force(p[_L.P.VF_F0], p[_L.P.VF_F1], p[_L.P.VF_I1], current)
         dy[o] = spool_rate(y[o], dp, F_f / p[_L.P.VF_A], p[_L.P.VF_TAU], p[_L.P.VF_DPREG])
         return y[o]
     dy[o] = 0.0
