@@ -130,6 +130,9 @@ def _damper(t, y, p, ex, dy, out, module, ext):
     the hidden effects' states (layout.EXT_BLOCKS), -1: none (their effects off)."""
     for k in range(out.shape[0]):
         out[k] = 0.0
+    if ext >= 0:  # the extension's states whose effect is off (or absent, as the play in the damper test) rest
+        for k in range(ext, dy.shape[0]):
+            dy[k] = 0.0
     u, du = prescribed(t, p, ex)
     if module:
         x_top, v_top = y[S_ROD], y[S_ROD + 1]

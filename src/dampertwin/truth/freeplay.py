@@ -11,7 +11,8 @@ exponent 1.5 of a Hertzian contact and LAM = 3 (1 - e) / (2 v_in) from the
 coefficient of restitution e: Gilardi & Sharf, Mech. Mach. Theory 37
 (2002) 1213, eq. 17-19). The contact never pulls (the damping factor is
 clipped at zero, fluid.hunt_crossley) and is exactly zero inside the
-clearance (the penetration's rounding EPS is far below GAP). A worn mount
+clearance (the penetration's rounding EPS = 10 nm underflows to 0 from
+~8 um inside the edge; at the edge it leaves K EPS^1.5 ~ 1e-2 N). A worn mount
 knocks: the force reaches the load cell through the sleeve and the rubber
 only after the play is taken up.
 """
