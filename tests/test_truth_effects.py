@@ -319,3 +319,24 @@ def test_bad_hidden_effect_settings_exit_2_naming_file_and_key(tmp_path, capsys,
     err = capsys.readouterr().err
     assert rc == 2 and str(path) in err and key in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_bench_case_hides_a_truth_effect_in_a_lab3_sample(tmp_path):
+    """discrepancy.hidden.hidden_sample on a lab-3 base writes the effect
+    under truth.effects: the sample loads, the part is the nominal truth
+    (the base's deviations dropped) with the effect on at the given value."""
+    from dampertwin.discrepancy.hidden import hidden_sample
+
+    base = {k: v for k, v in load_sample(SAMPLES[0]).items() if not k.startswith("_")}
+    s = hidden_sample(base, effects={"top_mount_free_play": {"clearance": 1.5e-4}}, values={"chambers.BAND_H": 2e-5})
+    assert s["truth"]["effects"] == {"top_mount_free_play": {"clearance": 1.5e-4}}
+    assert s["truth"]["values"] == {"chambers.BAND_H": 2e-5} and base["truth"]["values"]  # the base untouched
+    path = tmp_path / "case.yaml"
+    path.write_text(yaml.safe_dump(s))
+    nominal = load(NOMINAL)
+    p, _ = truth_part(nominal, nominal, load_sample(path))
+    assert p[tp.index("free_play.ON")] == 1.0 and p[tp.index("free_play.GAP")] == 1.5e-4
+    kept = hidden_sample(base, effects={"air_entrainment": True}, keep_deviations=True)
+    assert kept["truth"]["values"] == base["truth"]["values"] and kept["truth"]["effects"]["air_entrainment"] is True
+    with pytest.raises(ValueError, match="factors"):
+        hidden_sample(base, factors={"oil.nu": 1.1})

@@ -1,7 +1,10 @@
 """Assembled right-hand sides of the truth (solver.rhs_signature):
 ``valve`` (flow bench), ``damper`` (rod on the fixture's crosshead, tube
 driven), ``module`` (rod on the top mount, the mount on the crosshead) and
-``topmount`` (the mount alone on the crosshead).
+``topmount`` (the mount alone on the crosshead); ``damper+`` / ``module+``
+the same with the hidden effects' states appended (layout.EXT_BLOCKS: the
+steel node, the entrained gas, the top-mount sleeve), run only when one of
+those effects is on.
 
 Sign conventions of the project (DESIGN.md 4): the stroke s grows in
 rebound (the rebound chamber shrinks), the rod force is positive in
