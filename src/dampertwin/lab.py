@@ -200,8 +200,6 @@ def _load_sample3(path: Path, doc: dict) -> dict:
                 bad.append(str(e))
         bad += [f"truth.values.{k}: {v!r}; expected a finite number (SI)" for k, v in t.get("values", {}).items()
                 if not _finite(v)]
-        bad += [f"truth.effects.{k}: {v!r}; expected true or false" for k, v in t.get("effects", {}).items()
-                if not isinstance(v, bool)]
     if not isinstance(doc.get("seed_offset", 0), int) or isinstance(doc.get("seed_offset", 0), bool):
         bad.append(f"seed_offset: {doc['seed_offset']!r}; expected an integer")
     return _finish_sample(path, doc, bad)

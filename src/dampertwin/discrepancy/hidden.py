@@ -14,11 +14,36 @@ from scipy import signal
 
 def hidden_sample(base: dict, *, effects: dict | None = None, values: dict | None = None,
                   factors: dict | None = None, keep_deviations: bool = False) -> dict:
-    """A lab sample description (the shipped hidden sample's format) hiding ``effects`` (name ->
-    True) with ``values`` (effect parameters, e.g. {"piston_leakage.gap": 6e-5});
-    the part's deviations of ``base`` are kept only with ``keep_deviations``
-    (else the part is nominal plus ``factors``); the benches are ``base``'s."""
+    """A lab sample description (the shipped hidden sample's format) hiding ``effects``
+    with ``values``; the part's deviations of ``base`` are kept only with
+    ``keep_deviations`` (else the part is nominal plus ``factors`` / ``values``);
+    the benches are ``base``'s.
+
+    Lab-2 base (``factors`` / ``values`` / ``effects`` at the top): ``effects``
+    names library effects (name -> True), ``values`` design keys and effect
+    parameters (e.g. {"piston_leakage.gap": 6e-5}); the base's effects not
+    named are switched off.
+
+    Lab-3 base (a ``truth:`` section, measured on dampertwin.truth): the effects
+    are the truth's own physics, written under ``truth.effects``. The hidden
+    ones (truth.params.OFF_BY_DEFAULT: ``band_eccentricity``,
+    ``two_node_thermal``, ``top_mount_free_play``, ``air_entrainment``) are off
+    unless named; a case hides one as ``{name: True}`` (the truth's typical
+    magnitude) or ``{name: {parameter: value}}`` (truth.params.EFFECT_PARAMETERS,
+    SI, e.g. {"top_mount_free_play": {"clearance": 1.5e-4}}), and may set any
+    truth key in ``values`` (e.g. {"chambers.BAND_H": 3e-5}, a worn band). The
+    truth's always-on physics (shim friction, gas dissolution, ...) stays on
+    unless ``effects`` switches it off; ``factors`` has no meaning there."""
     s = copy.deepcopy(base)
+    if "truth" in s:
+        if factors:
+            raise ValueError("hidden_sample: a lab-3 (truth) sample has no factors; give truth values")
+        t = s["truth"]
+        if not keep_deviations:
+            t["values"], t["effects"] = {}, {}
+        t["values"] = {**t.get("values", {}), **(values or {})}
+        t["effects"] = {**t.get("effects", {}), **(effects or {})}
+        return s
     if not keep_deviations:
         s["factors"], s["values"], s["effects"] = {}, {}, {}
     s["factors"] = {**s.get("factors", {}), **(factors or {})}

@@ -3,7 +3,10 @@
 Numba's on-disk cache is invalidated only when a function's own file
 changes, not when a compiled function it calls (in another module) changes.
 So, unless the user chose NUMBA_CACHE_DIR, the cache lives in a folder named
-after a hash of all compiled sources: any edit gives a fresh cache.
+after a hash of all compiled sources: any edit gives a fresh cache. The lab's
+truth (dampertwin.truth) compiles into the same folder once this package is
+imported in a process, so its sources are hashed too (else an edit of a truth
+function called from another truth file ran stale machine code there).
 """
 
 import hashlib
@@ -20,7 +23,8 @@ def cache_sources() -> list[Path]:
 
 def _cache_dir() -> str:
     h = hashlib.sha256()
-    for f in cache_sources():
+    truth = sorted((Path(__file__).resolve().parent.parent / "truth").glob("*.py"))
+    for f in cache_sources() + truth:
         h.update(f.read_bytes())
     base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dampertwin" / "numba"
     return str(base / h.hexdigest()[:16])

@@ -16,7 +16,13 @@ equations, so the lab measures this package instead:
 - a reserve gas with heat exchange and dissolution (gas.py);
 - a generalised Maxwell-slip rod seal (seal.py), a generalised Maxwell
   rubber top mount with the Payne effect (mount.py), the test fixture's
-  resonance (fixture.py); parts as built (params.py).
+  resonance (fixture.py); parts as built (params.py);
+- hidden effects, off unless a sample names them under ``truth: effects:``
+  (params.OFF_BY_DEFAULT): an eccentric piston band (chambers.py), a
+  two-node oil / steel thermal network (thermal.py), top-mount free play
+  closed by impact contacts (freeplay.py), air entrained from the reserve at
+  low pressure and released at a finite rate (aeration.py). Their states
+  run only when one is on (configurations "damper+" / "module+").
 
 It may import the generic solver, the sensors, the excitations and the
 design loader (nominal values), never ``dampertwin.model`` (a test walks

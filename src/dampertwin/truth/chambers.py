@@ -30,9 +30,9 @@ from .fluid import BETA_T, JIT, P_FLOOR_EPS, P_REF, P_V, density, modulus, ramp,
 from .fluid import throttle as throttle_bp
 
 PARAMS = ("A_R", "A_B", "L_R0", "L_C0", "V_B", "KAPPA_PT", "KAPPA_TT", "P_W", "C_TH", "HA", "T_AMB", "THERMAL",
-          "D_PT", "A_BP", "L_BP", "N_BP", "BAND_H", "BAND_L", "M_ROD")
+          "D_PT", "A_BP", "L_BP", "N_BP", "BAND_H", "BAND_L", "M_ROD", "BAND_ECC")
 (A_R, A_B, L_R0, L_C0, V_B, KAPPA_PT, KAPPA_TT, P_W, C_TH, HA, T_AMB, THERMAL, D_PT, A_BP, L_BP, N_BP, BAND_H, BAND_L,
- M_ROD) = range(len(PARAMS))
+ M_ROD, BAND_ECC) = range(len(PARAMS))
 STATES = (("P_r", "Pa", 1e5, "rebound chamber pressure"), ("P_c", "Pa", 1e5, "compression chamber pressure"),
           ("P_b", "Pa", 1e5, "third-tube pressure"), ("g_r", "m^3", 1e-7, "entrained gas, rebound"),
           ("g_c", "m^3", 1e-7, "entrained gas, compression"), ("g_b", "m^3", 1e-7, "entrained gas, third tube"),
@@ -99,11 +99,26 @@ def band_leakage(dp, sd, mu, p, o):
     """Piston band clearance rebound -> compression: (flow [m^3/s], shear
     force on the piston [N], tension positive, dissipated power [W]) for
     the pressure difference dp and stroke rate sd (the piston moves towards
-    the rebound chamber at sd)."""
+    the rebound chamber at sd).
+
+    Eccentric band (effect ``band_eccentricity``, BAND_ECC = eps > 0: the
+    piston off the bore's axis by eps h, the local gap h (1 + eps cos th)):
+    the thin-gap Poiseuille flow grows with the circumferential mean of the
+    local gap cubed, (1 + 1.5 eps^2) (White, Viscous Fluid Flow, 3rd ed.
+    2006, 3-2, eccentric annulus, narrow-gap limit), the Couette flow keeps
+    the mean gap, and the viscous drag grows with the mean of 1 / gap,
+    1 / sqrt(1 - eps^2) (Sommerfeld's integral; Hamrock, Schmid & Jacobson,
+    Fundamentals of Fluid Film Lubrication, 2nd ed. 2004, 12.3). mu is the
+    oil's dynamic viscosity at its temperature (Walther, fluid.viscosity)."""
     h = p[o + BAND_H]
     if h <= 0.0:
         return 0.0, 0.0, 0.0
     c = math.pi * p[o + D_PT]
+    e = p[o + BAND_ECC]
+    if e > 0.0:
+        Q = c * (h ** 3 * dp / (12.0 * mu * p[o + BAND_L]) * (1.0 + 1.5 * e * e) - 0.5 * h * sd)
+        F = c * (0.5 * h * dp + mu * p[o + BAND_L] * sd / (h * math.sqrt(1.0 - e * e)))
+        return Q, F, dp * Q + F * sd
     Q = c * (h ** 3 * dp / (12.0 * mu * p[o + BAND_L]) - 0.5 * h * sd)
     F = c * (0.5 * h * dp + mu * p[o + BAND_L] * sd / h)
     return Q, F, dp * Q + F * sd

@@ -1,7 +1,10 @@
 """Assembled right-hand sides of the truth (solver.rhs_signature):
 ``valve`` (flow bench), ``damper`` (rod on the fixture's crosshead, tube
 driven), ``module`` (rod on the top mount, the mount on the crosshead) and
-``topmount`` (the mount alone on the crosshead).
+``topmount`` (the mount alone on the crosshead); ``damper+`` / ``module+``
+the same with the hidden effects' states appended (layout.EXT_BLOCKS: the
+steel node, the entrained gas, the top-mount sleeve), run only when one of
+those effects is on.
 
 Sign conventions of the project (DESIGN.md 4): the stroke s grows in
 rebound (the rebound chamber shrinks), the rod force is positive in
@@ -13,18 +16,21 @@ from __future__ import annotations
 from numba import njit
 
 from ..solver import rhs_signature
+from . import aeration as ae
 from . import chambers as ch
 from . import fixture as fx
+from . import freeplay as fp
 from . import gas as gs
 from . import intake as ik
 from . import mount as mt
 from . import shims as sh
 from . import solenoid as sv
+from . import thermal as th
 from .fluid import BETA_T, JIT, P_ATM, P_REF, RHO0, density, viscosity
 from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, EX_T0, O_A_ROD, O_DISS, O_DP, O_F_ACT,
                      O_F_MU, O_F_ROD, O_F_TM, O_I, O_LIFT, O_MAG, O_MASS, O_P_B, O_P_C, O_P_K, O_P_R, O_P_RES, O_Q_A,
                      O_Q_BP, O_Q_BV, O_Q_IN, O_Q_P, O_S, O_T_GAS, O_T_OIL, O_U, O_V, O_X_BC, O_X_BI, O_X_M, O_X_P,
-                     O_X_PI, O_X_PR, PO, SO, TO)
+                     O_X_PI, O_X_PR, PO, SO, TO, E_GE, E_TW, E_VS, E_XS, EXT_AT)
 from .seal import seal
 
 SIG = rhs_signature()
@@ -32,6 +38,8 @@ OIL, CH, GAS = PO["oil"], PO["chambers"], PO["gas"]
 PR, BC, PI, BI, AV = (PO["piston_rebound"], PO["base_compression"], PO["piston_intake"], PO["base_intake"],
                       PO["active_valve"])
 SEAL, MOUNT, FIX, RUN = PO["seal"], PO["mount"], PO["fixture"], PO["run"]
+FP, TH, AE = PO["free_play"], PO["thermal"], PO["aeration"]
+X_DAMPER, X_MODULE = EXT_AT["damper+"], EXT_AT["module+"]
 S_CH, S_GAS, S_PR, S_BC, S_PI, S_BI, S_AV, S_SEAL, S_FIX, S_ROD, S_MOUNT = (
     SO["chambers"], SO["gas"], SO["piston_rebound"], SO["base_compression"], SO["piston_intake"],
     SO["base_intake"], SO["active_valve"], SO["seal"], SO["fixture"], SO["rod"], SO["mount"])
@@ -120,9 +128,14 @@ def volumes(y, p, s, sd):
 
 
 @njit(**JIT)
-def _damper(t, y, p, ex, dy, out, module):
+def _damper(t, y, p, ex, dy, out, module, ext):
+    """The damper (module False) or the module; ``ext`` >= 0: the start of
+    the hidden effects' states (layout.EXT_BLOCKS), -1: none (their effects off)."""
     for k in range(out.shape[0]):
         out[k] = 0.0
+    if ext >= 0:  # the extension's states whose effect is off (or absent, as the play in the damper test) rest
+        for k in range(ext, dy.shape[0]):
+            dy[k] = 0.0
     u, du = prescribed(t, p, ex)
     if module:
         x_top, v_top = y[S_ROD], y[S_ROD + 1]
@@ -155,7 +168,18 @@ def _damper(t, y, p, ex, dy, out, module):
     a_rod = 0.0
     F_tm = 0.0
     L_top = 0.0
-    if module:
+    if module and ext >= 0 and p[FP + fp.ON] > 0.5:  # the rod in the play, the sleeve on the rubber
+        x_s, v_s = y[ext + E_XS], y[ext + E_VS]
+        F_c, L_c = fp.contact(x_top - x_s, v_top - v_s, p, FP)
+        F_tm, L_m = mt.mount(y, S_MOUNT, p, MOUNT, x_s - y[S_FIX + fx.XF], v_s - y[S_FIX + fx.VF], dy)
+        a_rod = (F_d - F_c) / p[CH + ch.M_ROD]
+        dy[S_ROD] = v_top
+        dy[S_ROD + 1] = a_rod
+        dy[ext + E_XS] = v_s
+        dy[ext + E_VS] = (F_c - F_tm) / p[FP + fp.M_S]
+        F_lc, L_f = fx.fixture(y, S_FIX, p, FIX, F_tm, dy)
+        L_top = L_m + L_f + L_c
+    elif module:
         F_tm, L_m = mt.mount(y, S_MOUNT, p, MOUNT, x_top - y[S_FIX + fx.XF], v_top - y[S_FIX + fx.VF], dy)
         a_rod = (F_d - F_tm) / p[CH + ch.M_ROD]
         dy[S_ROD] = v_top
@@ -176,16 +200,33 @@ def _damper(t, y, p, ex, dy, out, module):
     q_gas = 0.0
     if p[GAS + gs.HEAT] > 0.5:
         q_gas = p[GAS + gs.H] * (y[S_GAS + gs.T_G] - T)
-    dT = ch.oil_heating(T, loss - L_top + q_gas, p, CH)  # the rubber's and the fixture's losses heat them, not the oil
+    # the rubber's and the fixture's losses heat them, not the oil
+    if ext >= 0 and p[TH + th.ON] > 0.5:  # two nodes: oil and the tubes' steel (two_node_thermal)
+        dT, dT_w = 0.0, 0.0
+        if p[CH + ch.THERMAL] > 0.5:
+            dT, dT_w = th.two_node(T, y[ext + E_TW], loss - L_top + q_gas, p[CH + ch.HA], p[CH + ch.T_AMB], p, TH)
+        dy[ext + E_TW] = dT_w
+    else:
+        dT = ch.oil_heating(T, loss - L_top + q_gas, p, CH)
     # chambers: free gas, then the mass balances coupled through the walls
     g_r, g_c, g_b = y[S_CH + ch.GR], y[S_CH + ch.GC], y[S_CH + ch.GB]
     P_ref = p[OIL + P_REF]
+    # entrained reserve gas in the compression chamber (air_entrainment): its rate [m^3/s at P_ref] and the
+    # gas mass it takes from the reserve [kg/s] (at the run's reference temperature, as g is counted)
+    g_e, dg_e, m_e = 0.0, 0.0, 0.0
+    if ext >= 0 and p[AE + ae.ON] > 0.5:
+        g_e = y[ext + E_GE]
+        e_in, e_out = ae.entrainment(g_e, Q3, P_res, P_ref, p, AE)
+        dg_e = e_in - e_out
+        m_e = dg_e * P_ref / (p[GAS + gs.R_S] * p[CH + ch.T_AMB])
+        dy[ext + E_GE] = dg_e
+    g_ct = g_c + g_e  # the compression chamber's free gas: dissolved-air bubbles and entrained gas
     dg_r = gs.free_gas_rate(g_r, P_r, ch.liquid_volume(P_r, V_r, g_r, p, OIL), P_ref, p, GAS)
-    dg_c = gs.free_gas_rate(g_c, P_c, ch.liquid_volume(P_c, V_c, g_c, p, OIL), P_ref, p, GAS)
+    dg_c = gs.free_gas_rate(g_c, P_c, ch.liquid_volume(P_c, V_c, g_ct, p, OIL), P_ref, p, GAS)
     dg_b = gs.free_gas_rate(g_b, P_b, ch.liquid_volume(P_b, V_b, g_b, p, OIL), P_ref, p, GAS)
     dy[S_CH + ch.GR], dy[S_CH + ch.GC], dy[S_CH + ch.GB] = dg_r, dg_c, dg_b
     a_r, b_r = ch.balance(P_r, T, dT, V_r, dV_r, g_r, dg_r, -m_p - m_bp, p, OIL)
-    a_c, b_c = ch.balance(P_c, T, dT, V_c, dV_c, g_c, dg_c, m_p - m_bv, p, OIL)
+    a_c, b_c = ch.balance(P_c, T, dT, V_c, dV_c, g_ct, dg_c + dg_e, m_p - m_bv, p, OIL)
     a_b, b_b = ch.balance(P_b, T, dT, V_b, dV_b, g_b, dg_b, m_bp - m_a - m_f, p, OIL)
     dP_r, dP_c, dP_b = ch.walled_rates(a_r, b_r, a_c, b_c, a_b, b_b, W_r, W_c, W_t)
     dy[S_CH + ch.PR], dy[S_CH + ch.PC], dy[S_CH + ch.PB] = dP_r, dP_c, dP_b
@@ -194,6 +235,9 @@ def _damper(t, y, p, ex, dy, out, module):
     dV_oil_mass = (m_bv + m_a + m_pl) / rho_ref
     dV_g = -(dV_oil_mass + p[OIL + BETA_T] * V_oil * dT + dV_sw + W_t * dP_b)
     gs.reserve(y, S_GAS, p, GAS, P_res, V_g, dV_g, V_oil, T, dy)
+    if m_e != 0.0:  # the gas leaving the reserve takes its enthalpy (open system, as gas.reserve's dissolution)
+        dy[S_GAS + gs.M_G] -= m_e
+        dy[S_GAS + gs.T_G] -= p[GAS + gs.R_S] * y[S_GAS + gs.T_G] * m_e / (y[S_GAS + gs.M_G] * p[GAS + gs.C_V])
     dy[S_GAS + gs.M_RES] = m_bv + m_a + m_pl
     dy[S_CH + ch.T_OIL] = dT
     out[O_U] = u
@@ -218,7 +262,7 @@ def _damper(t, y, p, ex, dy, out, module):
     out[O_I] = y[S_AV + sv.I]
     out[O_T_OIL] = T
     out[O_T_GAS] = y[S_GAS + gs.T_G]
-    out[O_MASS] = (ch.oil_mass(P_r, T, V_r, g_r, p, OIL) + ch.oil_mass(P_c, T, V_c, g_c, p, OIL)
+    out[O_MASS] = (ch.oil_mass(P_r, T, V_r, g_r, p, OIL) + ch.oil_mass(P_c, T, V_c, g_ct, p, OIL)
                    + ch.oil_mass(P_b, T, V_b, g_b, p, OIL) + ch.oil_mass(P_k, T, V_k, 0.0, p, OIL)
                    + y[S_GAS + gs.M_RES])
     out[O_DISS] = loss + q_gas
@@ -228,13 +272,25 @@ def _damper(t, y, p, ex, dy, out, module):
 @njit(SIG, **JIT)
 def rhs_damper(t, y, p, ex, aux, dy, out):
     """Damper test: tube displacement prescribed, rod on the crosshead."""
-    _damper(t, y, p, ex, dy, out, False)
+    _damper(t, y, p, ex, dy, out, False, -1)
+
+
+@njit(SIG, **JIT)
+def rhs_damper_ext(t, y, p, ex, aux, dy, out):
+    """Damper test with the hidden effects' states (layout.EXT_BLOCKS)."""
+    _damper(t, y, p, ex, dy, out, False, X_DAMPER)
 
 
 @njit(SIG, **JIT)
 def rhs_module(t, y, p, ex, aux, dy, out):
     """Module test: the rod on the top mount, the mount on the crosshead."""
-    _damper(t, y, p, ex, dy, out, True)
+    _damper(t, y, p, ex, dy, out, True, -1)
+
+
+@njit(SIG, **JIT)
+def rhs_module_ext(t, y, p, ex, aux, dy, out):
+    """Module test with the hidden effects' states (layout.EXT_BLOCKS)."""
+    _damper(t, y, p, ex, dy, out, True, X_MODULE)
 
 
 @njit(SIG, **JIT)
@@ -307,4 +363,4 @@ def rhs_active_valve(t, y, p, ex, aux, dy, out):
 
 
 RHS = {"valve": rhs_valve, "damper": rhs_damper, "module": rhs_module, "topmount": rhs_topmount,
-       "active_valve": rhs_active_valve}
+       "active_valve": rhs_active_valve, "damper+": rhs_damper_ext, "module+": rhs_module_ext}

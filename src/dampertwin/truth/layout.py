@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import chambers, fixture, fluid, gas, intake, mount, seal, shims, solenoid
+from . import aeration, chambers, fixture, fluid, freeplay, gas, intake, mount, seal, shims, solenoid, thermal
 
 RUN_PARAMS = ("CURRENT", "EX_T0", "EX_DT", "BENCH_V", "BENCH_P", "BENCH_BLOCK", "BENCH_KIND")
 CURRENT, EX_T0, EX_DT, BENCH_V, BENCH_P, BENCH_BLOCK, BENCH_KIND = range(len(RUN_PARAMS))
 PARAM_BLOCKS = (("oil", fluid.PARAMS), ("chambers", chambers.PARAMS), ("gas", gas.PARAMS),
                 ("piston_rebound", shims.PARAMS), ("base_compression", shims.PARAMS),
                 ("piston_intake", intake.PARAMS), ("base_intake", intake.PARAMS), ("active_valve", solenoid.PARAMS),
-                ("seal", seal.PARAMS), ("mount", mount.PARAMS), ("fixture", fixture.PARAMS), ("run", RUN_PARAMS))
+                ("seal", seal.PARAMS), ("mount", mount.PARAMS), ("fixture", fixture.PARAMS),
+                ("free_play", freeplay.PARAMS), ("thermal", thermal.PARAMS), ("aeration", aeration.PARAMS),
+                ("run", RUN_PARAMS))
 
 
 def _offsets(blocks):
@@ -38,11 +40,20 @@ MODULE_BLOCKS = DAMPER_BLOCKS + (("rod", ROD_STATES), ("mount", mount.STATES))
 TOPMOUNT_BLOCKS = (("mount", mount.STATES), ("fixture", fixture.STATES))
 VALVE_BLOCKS = (("bench", BENCH_STATES),)
 ACTIVE_BLOCKS = (("active_valve", solenoid.STATES),)
+# the states of the effects that are off unless a sample names them, appended to the damper's / module's
+# (configurations "damper+" / "module+", run only when one of them is on: the default runs keep their state
+# vector, hence the solver's error norm, bit for bit); offsets inside the block: ext.E_*
+EXT_BLOCKS = (("thermal", thermal.STATES), ("aeration", aeration.STATES), ("free_play", freeplay.STATES))
 CONFIG_BLOCKS = {"valve": VALVE_BLOCKS, "damper": DAMPER_BLOCKS, "module": MODULE_BLOCKS,
-                 "topmount": TOPMOUNT_BLOCKS, "active_valve": ACTIVE_BLOCKS}
+                 "topmount": TOPMOUNT_BLOCKS, "active_valve": ACTIVE_BLOCKS,
+                 "damper+": DAMPER_BLOCKS + EXT_BLOCKS, "module+": MODULE_BLOCKS + EXT_BLOCKS}
 SO, N_MODULE = _offsets(MODULE_BLOCKS)   # module offsets; the damper's are its first blocks
 TO, N_TOPMOUNT = _offsets(TOPMOUNT_BLOCKS)
 N_DAMPER = _offsets(DAMPER_BLOCKS)[1]
+EO, _ = _offsets(EXT_BLOCKS)  # offsets inside the extension block
+E_TW, E_GE, E_XS = EO["thermal"] + thermal.TW, EO["aeration"] + aeration.GE, EO["free_play"] + freeplay.XS
+E_VS = EO["free_play"] + freeplay.VS
+EXT_AT = {"damper+": N_DAMPER, "module+": N_MODULE}  # where the extension block starts
 
 
 def states(configuration: str) -> tuple:

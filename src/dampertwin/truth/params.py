@@ -35,11 +35,27 @@ DEVIATING = (
     ("chambers", "V_B"), ("chambers", "A_BP"), ("gas", "V_TOT"),
     ("mount", "K_E"), ("mount", "K_1"), ("mount", "K_2"), ("mount", "K_3"), ("seal", "F0"), ("fixture", "K_F"),
 )
-# effect switches of the truth (all on in a lab sample unless switched off there)
+# effect switches of the truth: the first nine are on in a lab sample unless switched off there (the shipped
+# samples' physics); the last four are hidden effects, OFF unless a sample names them (true: their nominal
+# values below; a mapping: on, with the values it gives, keys of EFFECT_PARAMETERS)
 EFFECTS = {"shim_friction": ("piston_rebound.FRICTION", "base_compression.FRICTION"),
            "gas_dissolution": ("gas.DISSOLVE",), "gas_heat_exchange": ("gas.HEAT",),
            "oil_thermal": ("chambers.THERMAL",), "payne": ("mount.PAYNE",), "fixture": ("fixture.ON",),
-           "current_driver": ("active_valve.DRIVER",), "wall_compliance": (), "as_built": ()}
+           "current_driver": ("active_valve.DRIVER",), "wall_compliance": (), "as_built": (),
+           "band_eccentricity": (), "two_node_thermal": ("thermal.ON",), "top_mount_free_play": ("free_play.ON",),
+           "air_entrainment": ("aeration.ON",)}
+OFF_BY_DEFAULT = ("band_eccentricity", "two_node_thermal", "top_mount_free_play", "air_entrainment")
+# an effect's parameters as a sample names them under ``effects:`` -> (truth key, lowest, highest) [SI]
+EFFECT_PARAMETERS = {
+    "band_eccentricity": {"eccentricity": ("chambers.BAND_ECC", 0.0, 0.95)},  # [-] offset / radial clearance
+    "two_node_thermal": {"oil_capacity": ("thermal.C_OIL", 1.0, 1e6), "steel_capacity": ("thermal.C_W", 1.0, 1e6),
+                         "oil_to_steel": ("thermal.G_OW", 1e-3, 1e9)},  # [J/K], [J/K], [W/K]
+    "top_mount_free_play": {"clearance": ("free_play.GAP", 0.0, 5e-3), "stiffness": ("free_play.K", 1e5, 1e13),
+                            "damping": ("free_play.LAM", 0.0, 10.0), "sleeve_mass": ("free_play.M_S", 1e-3, 10.0)},
+    # [m] half-width of the play, [N/m^1.5], [s/m], [kg]
+    "air_entrainment": {"onset_pressure": ("aeration.P_E", 1e3, 1e7), "fraction": ("aeration.PHI_E", 0.0, 1.0),
+                        "release_time": ("aeration.TAU_E", 1e-3, 1e4)},  # [Pa], [-], [s]
+}
 
 # The truth's own drawings and datasheets (what the design file does not describe).
 TRUTH_NOMINAL = {
@@ -97,6 +113,17 @@ TRUTH_NOMINAL = {
     # fixture: 12 kg crosshead on the load cell, 650 Hz, 4 % damping
     "fixture.M_F": 12.0, "fixture.K_F": 12.0 * (2 * math.pi * 650.0) ** 2,
     "fixture.C_F": 2 * 0.04 * math.sqrt(12.0 * 12.0 * (2 * math.pi * 650.0) ** 2), "fixture.ON": 1.0,
+    # hidden effects (off unless a sample names them; these values when it says `true`):
+    # a worn band's piston off the bore's axis by half its clearance
+    "chambers.BAND_ECC": 0.5,
+    # two thermal nodes: 0.3 kg oil x 1.9 kJ/(kg K), 1.4 kg steel x 0.46 kJ/(kg K), 250 W/(m^2 K) over 0.04 m^2
+    "thermal.C_OIL": 570.0, "thermal.C_W": 644.0, "thermal.G_OW": 10.0, "thermal.ON": 0.0,
+    # top-mount play +-0.1 mm; steel washer on the sleeve: Hertz-like 2e10 N/m^1.5, restitution ~0.85 at 1 m/s
+    # (LAM = 3 (1 - e) / (2 v), Gilardi & Sharf 2002); 0.25 kg inner sleeve and bearing
+    "free_play.GAP": 1e-4, "free_play.K": 2e10, "free_play.LAM": 0.2, "free_play.EPS": 1e-8, "free_play.M_S": 0.25,
+    "free_play.ON": 0.0,
+    # entrainment below 2.5 bar abs, up to 5 % gas by volume at vacuum, released over 1 s
+    "aeration.P_E": 2.5e5, "aeration.PHI_E": 0.05, "aeration.TAU_E": 1.0, "aeration.ON": 0.0,
 }
 VALUE_KEYS = frozenset(PARAM_NAMES) | frozenset(TRUTH_NOMINAL)
 
@@ -150,10 +177,43 @@ def check_values(values: dict, where: str) -> None:
 
 
 def check_effects(effects: dict, where: str) -> None:
-    bad = [k for k in effects if k not in EFFECTS]
+    """Every effect is known and set to true / false or, for a hidden
+    effect with parameters, to a mapping of them (finite, in range); a
+    TruthParameterError names every bad key."""
+    bad = []
+    for k, val in effects.items():
+        if k not in EFFECTS:
+            bad.append(f"{where}.{k}: unknown effect; expected one of {', '.join(sorted(EFFECTS))}")
+        elif isinstance(val, dict):
+            known = EFFECT_PARAMETERS.get(k, {})
+            if not known:
+                bad.append(f"{where}.{k}: {val!r}; expected true or false (the effect has no parameters)")
+            for q, x in val.items():
+                if q not in known:
+                    if known:
+                        bad.append(f"{where}.{k}.{q}: unknown parameter; expected {', '.join(sorted(known))}")
+                elif not (isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                          and known[q][1] <= x <= known[q][2]):
+                    bad.append(f"{where}.{k}.{q}: {x!r}; expected a number in [{known[q][1]:g}, {known[q][2]:g}] (SI)")
+        elif not isinstance(val, bool):
+            bad.append(f"{where}.{k}: {val!r}; expected true, false"
+                       + (f" or a mapping of {', '.join(sorted(EFFECT_PARAMETERS[k]))}" if k in EFFECT_PARAMETERS
+                          else ""))
     if bad:
-        raise TruthParameterError("; ".join(f"{where}.{k}: unknown effect; expected one of {', '.join(sorted(EFFECTS))}"
-                                            for k in bad))
+        raise TruthParameterError("; ".join(bad))
+
+
+def effect_settings(effects: dict | None) -> tuple[dict, dict]:
+    """(switch per effect, truth values the effects' mappings give) of a
+    sample's ``effects:``; the hidden effects (OFF_BY_DEFAULT) are off
+    unless named, the others on."""
+    on = {k: k not in OFF_BY_DEFAULT for k in EFFECTS}
+    values = {}
+    for k, val in dict(effects or {}).items():
+        on[k] = True if isinstance(val, dict) else val
+        if isinstance(val, dict):
+            values.update({EFFECT_PARAMETERS[k][q][0]: float(x) for q, x in val.items()})
+    return on, values
 
 
 def derive(v: dict, effects: dict | None = None, as_built_seed: int | None = None,
@@ -161,10 +221,14 @@ def derive(v: dict, effects: dict | None = None, as_built_seed: int | None = Non
     """The packed parameter vector (layout.PARAM_NAMES; run block left 0)
     of the part described by ``v`` (:func:`nominal` updated by a sample's
     values), with effect switches ``effects`` (default all on) and, when
-    ``as_built_seed`` is given, the part as built."""
-    effects = {k: True for k in EFFECTS} | dict(effects or {})
-    check_effects(effects, "effects")
+    ``as_built_seed`` is given, the part as built. An effect's mapping
+    (check_effects) switches it on with its values, over ``v``'s."""
+    check_effects(dict(effects or {}), "effects")
+    effects, eff_values = effect_settings(effects)
+    v = {**v, **eff_values}
     q = {k: x for k, x in v.items() if k in PARAM_NAMES}
+    if not effects["band_eccentricity"]:
+        q["chambers.BAND_ECC"] = 0.0
     q["oil.WALTHER_A"], q["oil.WALTHER_B"] = fluid.walther_coefficients(v["nu"], v["T"], v["viscosity_slope"])
     D_PT, D_R = q["chambers.D_PT"], v["D_R"]
     q["chambers.A_B"] = math.pi / 4 * D_PT ** 2

@@ -11,15 +11,18 @@ import numpy as np
 from ..excitation import Excitation
 from ..solver import RunStats, integrate
 from . import chambers as ch
+from . import aeration as ae
 from . import fixture as fx
 from . import fluid
+from . import freeplay as fpl
 from . import gas as gs
 from . import mount as mt
 from . import solenoid as sv
+from . import thermal as th
 from .damper import RHS
 from .fluid import density, ramp
-from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, EX_T0, N_OUT, OUTPUTS, PO, SO,
-                     scales, state_names)
+from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, E_TW, E_VS, E_XS, EX_DT, EX_T0, EXT_AT,
+                     N_OUT, OUTPUTS, PO, SO, scales, state_names)
 from .params import INTAKES, SHIMS
 
 SETTLE_S = 0.3  # [s] rest before the record: valves, driver, fixture and rubber find their rest state
@@ -95,6 +98,34 @@ def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0):
     return y
 
 
+def extended(p, configuration: str) -> bool:
+    """A damper / module run with a hidden effect that has states of its own
+    (two_node_thermal, air_entrainment; top_mount_free_play in the module):
+    it runs on configuration "damper+" / "module+"."""
+    on = lambda block, flag: p[PO[block] + flag] > 0.5  # noqa: E731
+    return configuration in ("damper", "module") and (
+        on("thermal", th.ON) or on("aeration", ae.ON) or (configuration == "module" and on("free_play", fpl.ON)))
+
+
+def _extend(y, p, configuration, oil_T, P0):
+    """The rest state of the extended configuration: the steel at the oil's
+    temperature, no entrained gas, the top-mount sleeve where the rod was and
+    the rod against the play's side the gas force presses it to."""
+    cfg = configuration + "+"
+    z = np.zeros(len(state_names(cfg)))
+    z[: len(y)] = y
+    e = EXT_AT[cfg]
+    z[e + E_TW] = oil_T
+    if configuration == "module":
+        fo, co = PO["free_play"], PO["chambers"]
+        z[e + E_XS] = y[SO["rod"]]
+        z[e + E_VS] = 0.0
+        if p[fo + fpl.ON] > 0.5:
+            F0 = -(P0 - p[PO["oil"] + fluid.P_ATM]) * (p[co + ch.A_B] - p[co + ch.A_R])
+            z[SO["rod"]] = y[SO["rod"]] + fpl.rest_offset(F0, p[fo + fpl.GAP], p[fo + fpl.K])
+    return z
+
+
 def simulate(p: np.ndarray, excitation: Excitation, configuration: str, *, current: float = 0.0,
              bench_valve: str | None = None, bench: dict | None = None, rate: float = 10_000.0,
              oil_T: float | None = None, rest: dict | None = None, rtol: float = RTOL, atol: float = ATOL,
@@ -134,8 +165,12 @@ def simulate(p: np.ndarray, excitation: Excitation, configuration: str, *, curre
         if start_current is not None:
             y0[SO["active_valve"] + sv.I] = start_current
             y0[SO["active_valve"] + sv.E] = 0.0
-    rhs = RHS[configuration]
-    sc = scales(configuration)
+    cfg = configuration
+    if extended(p, configuration):
+        y0 = _extend(y0, p, configuration, oil_T, rest["P0"])
+        cfg = configuration + "+"
+    rhs = RHS[cfg]
+    sc = scales(cfg)
     ex = excitation.array()
     t0 = float(excitation.t0)
     if settle > 0:
