@@ -1,7 +1,8 @@
 """Assembled right-hand sides of the truth (solver.rhs_signature):
 ``valve`` (flow bench), ``damper`` (rod on the fixture's crosshead, tube
 driven), ``module`` (rod on the top mount, the mount on the crosshead) and
-``topmount`` (the mount alone on the crosshead).
+``topmount`` (the mount alone on the crosshead). They compile at first
+use, not at import (``dampertwin.jit``).
 
 Sign conventions of the project (DESIGN.md 4): the stroke s grows in
 rebound (the rebound chamber shrinks), the rod force is positive in
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from ..jit import lazy_njit
 from ..solver import rhs_signature
 from . import chambers as ch
 from . import fixture as fx
@@ -225,19 +227,19 @@ def _damper(t, y, p, ex, dy, out, module):
     out[O_MAG] = P_mag
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_damper(t, y, p, ex, aux, dy, out):
     """Damper test: tube displacement prescribed, rod on the crosshead."""
     _damper(t, y, p, ex, dy, out, False)
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_module(t, y, p, ex, aux, dy, out):
     """Module test: the rod on the top mount, the mount on the crosshead."""
     _damper(t, y, p, ex, dy, out, True)
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_topmount(t, y, p, ex, aux, dy, out):
     """Top-mount bench: deflection prescribed at the base, mount on the crosshead."""
     for k in range(out.shape[0]):
@@ -251,7 +253,7 @@ def rhs_topmount(t, y, p, ex, aux, dy, out):
     out[O_DISS] = L_m + L_f
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_valve(t, y, p, ex, aux, dy, out):
     """Flow bench: a prescribed flow into an upstream volume of degassed oil,
     one passive valve to a constant back pressure."""
@@ -280,7 +282,7 @@ def rhs_valve(t, y, p, ex, aux, dy, out):
     out[O_DISS] = L
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_active_valve(t, y, p, ex, aux, dy, out):
     """The active valve alone on a pressure bench: prescribed pressure drop
     (ex) over it, outlet at the bench's back pressure, degassed oil."""
