@@ -14,11 +14,8 @@ function type of the right-hand sides, not per right-hand side).
 from __future__ import annotations
 
 import functools
-import threading
 
 from numba import njit
-
-_LOCK = threading.RLock()  # one compilation per function, also from threads (re-entrant: callees compile inside)
 
 
 class LazyDispatcher:
@@ -35,11 +32,11 @@ class LazyDispatcher:
 
     @property
     def dispatcher(self):
-        """The compiled dispatcher (compiles on the first access)."""
+        """The compiled dispatcher (compiles on the first access). No lock of
+        its own (it could deadlock against numba's compiler lock): two threads
+        that first use it at once each build one, both valid, one is kept."""
         if self._dispatcher is None:
-            with _LOCK:
-                if self._dispatcher is None:
-                    self._dispatcher = njit(self._sigs, **self._flags)(self.py_func)
+            self._dispatcher = njit(self._sigs, **self._flags)(self.py_func)
         return self._dispatcher
 
     @property
