@@ -1,6 +1,7 @@
 """Test problems for the integrator, independent of the damper model.
 
-Each is compiled with the solver's RHS signature: rhs(t, y, p, ex, aux, dy, out).
+Each is compiled with the solver's RHS signature: rhs(t, y, p, ex, aux, dy, out),
+at first use (collecting the tests compiles nothing).
 """
 
 from __future__ import annotations
@@ -8,14 +9,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from dampertwin.jit import lazy_njit
 from dampertwin.solver import rhs_signature
 
 SIG = rhs_signature()
 
 
-@njit(SIG, cache=True, error_model="numpy")
+@lazy_njit(SIG, cache=True, error_model="numpy")
 def prothero_robinson(t, y, p, ex, aux, dy, out):
     """y0' = -lam (y0 - sin t) + cos t (exact sin t from 0; stiffness lam = p[0]),
     y1' = -y1^2 (exact 1 / (1 + t) from 1): non-autonomous and nonlinear."""
@@ -29,7 +30,7 @@ def prothero_robinson_exact(t):
     return np.column_stack([np.sin(t), 1.0 / (1.0 + t)])
 
 
-@njit(SIG, cache=True, error_model="numpy")
+@lazy_njit(SIG, cache=True, error_model="numpy")
 def linear(t, y, p, ex, aux, dy, out):
     """y' = A y with A = [[-p0, 1], [0, -p1]] (stiff when p0 >> p1): exact
     y0 = e^{-p0 t}(y0(0) - c) + c e^{-p1 t}, c = y1(0)/(p0 - p1), y1 = y1(0) e^{-p1 t}.
@@ -45,7 +46,7 @@ def linear_exact(t, p0, p1, y00, y10):
     return np.column_stack([np.exp(-p0 * t) * (y00 - c) + c * np.exp(-p1 * t), y10 * np.exp(-p1 * t)])
 
 
-@njit(SIG, cache=True, error_model="numpy")
+@lazy_njit(SIG, cache=True, error_model="numpy")
 def van_der_pol(t, y, p, ex, aux, dy, out):
     """y0' = y1, y1' = mu (1 - y0^2) y1 - y0, mu = p[0] (stiff for mu >> 1)."""
     dy[0] = y[1]
@@ -58,7 +59,7 @@ def van_der_pol_jacobian(y, mu):
     return np.array([[0.0, 1.0], [-2.0 * mu * y[0] * y[1] - 1.0, mu * (1.0 - y[0] ** 2)]])
 
 
-@njit(SIG, cache=True, error_model="numpy")
+@lazy_njit(SIG, cache=True, error_model="numpy")
 def robertson(t, y, p, ex, aux, dy, out):
     """Robertson's stiff chemical kinetics (Hairer & Wanner IV.1)."""
     dy[0] = -0.04 * y[0] + 1e4 * y[1] * y[2]
@@ -69,7 +70,7 @@ def robertson(t, y, p, ex, aux, dy, out):
     out[2] = y[2]
 
 
-@njit(SIG, cache=True, error_model="numpy")
+@lazy_njit(SIG, cache=True, error_model="numpy")
 def chain(t, y, p, ex, aux, dy, out):
     """A tridiagonal nonlinear chain (sparse Jacobian for colouring tests):
     y_i' = -y_i^3 + p0 (y_{i-1} - 2 y_i + y_{i+1}) + sin(t) (ends held at 0)."""

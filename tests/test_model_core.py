@@ -16,6 +16,7 @@ from scipy.optimize import brentq
 
 from dampertwin import Excitation, simulate, simulate_batch
 from dampertwin.design import load
+from dampertwin.jit import LazyDispatcher
 from dampertwin.model import cache_sources, layout as L
 from dampertwin.model.active_valve import pack_map
 from dampertwin.model.damper import RHS
@@ -101,7 +102,7 @@ def _reachable_files(fn, seen):
     files = {Path(inspect.getsourcefile(py)).resolve()}
     for name in py.__code__.co_names:
         g = py.__globals__.get(name)
-        if isinstance(g, CPUDispatcher):
+        if isinstance(g, (CPUDispatcher, LazyDispatcher)):
             files |= _reachable_files(g, seen)
     return files
 

@@ -9,11 +9,11 @@ import math
 
 import numpy as np
 import pytest
-from numba import njit
 
 from conftest import ROOT
 from dampertwin.design import load
 from dampertwin.excitation import Excitation
+from dampertwin.jit import lazy_njit
 from dampertwin.solver import integrate, rhs_signature
 from dampertwin.truth import gas as gs
 from dampertwin.truth import params as tp
@@ -128,7 +128,7 @@ def test_current_driver_reaches_the_command_with_finite_bandwidth():
     assert 0.3e-4 < t63 < 3e-3
 
 
-@njit(rhs_signature(), cache=False)  # calls gas.reserve: no stale cache across edits
+@lazy_njit(rhs_signature(), cache=False)  # calls gas.reserve: no stale cache across edits
 def _gas_bench(t, y, p, ex, aux, dy, out):
     """The reserve gas alone, its volume prescribed: V = V0 (1 - 0.3 min(t / t_c, 1))."""
     V0, t_c = p[len(gs.PARAMS)], p[len(gs.PARAMS) + 1]

@@ -15,8 +15,15 @@ The right-hand side is a first-class compiled function with the signature
 ``rhs(t, y, p, ex, aux, dy, out)`` (:func:`rhs_signature`): time [s], state
 y, parameter vector p, tabulated input ex[2, n], auxiliary data aux (e.g. a
 look-up table), the state derivative dy to fill and output channels out to
-fill. Compile it with ``@njit(rhs_signature(), cache=True)``; this module
-knows nothing about what it integrates.
+fill. Compile it with ``@njit(rhs_signature(), cache=True)`` or, to compile
+at first use rather than at import, ``@jit.lazy_njit(rhs_signature(),
+cache=True)``; this module knows nothing about what it integrates.
+
+The entry points with explicit signatures (the ones Python calls, which
+take the right-hand side as a first-class function of type ``RHS``) are
+``jit.lazy_njit``: importing this module compiles nothing, each compiles
+once at its first use (a cold cache costs about a minute, and a test
+collection or a ``--help`` should not pay it).
 """
 
 from __future__ import annotations
@@ -27,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange, types
+
+from .jit import lazy_njit
 
 
 def rhs_signature():
@@ -292,7 +301,7 @@ def _fd_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr,
         ft[i] = (f1[i] - f0[i]) / dtt
 
 
-@njit(types.void(RHS, types.float64, _A1, _A1, _A1, _A2, _A1, _I1, types.int64, _I1, _I1, _A2, _A1, types.int64),
+@lazy_njit(types.void(RHS, types.float64, _A1, _A1, _A1, _A2, _A1, _I1, types.int64, _I1, _I1, _A2, _A1, types.int64),
       **_JIT)
 def fd_jacobian(rhs, t, z, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, n_rhs_out):
     """Python-callable coloured finite-difference Jacobian of the scaled
@@ -318,7 +327,7 @@ _STEP_SIG = types.UniTuple(types.float64, 3)(
     _I1, types.int64, types.float64, _A2, _A1)
 
 
-@njit(_STEP_SIG, **_JIT)
+@lazy_njit(_STEP_SIG, **_JIT)
 def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
            channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft):
     """Integrate scaled state z (in place) from t towards t_end, returning
@@ -496,7 +505,7 @@ def _jac_mul_add(jac, col_ptr, row_idx, v, c, acc):
                 acc[r] += jac[r, j] * vj
 
 
-@njit(_STEP_SIG, **_JIT)
+@lazy_njit(_STEP_SIG, **_JIT)
 def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
              channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft):
     """Same contract as :func:`rodas4`, with the ROS34PW2 Rosenbrock-W
@@ -692,7 +701,7 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
     return float(OK), t_end, float(i_out)
 
 
-@njit(_STEP_SIG.return_type(types.int64, *_STEP_SIG.args), **_JIT)
+@lazy_njit(_STEP_SIG.return_type(types.int64, *_STEP_SIG.args), **_JIT)
 def step_chunk(method, rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
                channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft):
     """Dispatch to the integration method (RODAS4 | ROS34PW2)."""
@@ -704,7 +713,7 @@ def step_chunk(method, rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_
                   channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft)
 
 
-@njit(types.void(types.int64, RHS, _A2, _A1, types.float64, types.float64, _A2, _A2, _A1, _A1, types.float64,
+@lazy_njit(types.void(types.int64, RHS, _A2, _A1, types.float64, types.float64, _A2, _A2, _A1, _A1, types.float64,
                  types.float64, types.float64, _A1, types.int64[::1], _A3, _I1, _A2, types.int64[:, ::1],
                  types.int64[::1], types.int64, _I1, types.int64, _I1, _I1, _I1, types.int64, _A3, _A2),
       parallel=True, **_JIT)
@@ -793,7 +802,7 @@ def colouring(J: np.ndarray) -> tuple[np.ndarray, int]:
     return colour, int(colour.max()) + 1
 
 
-@njit(types.void(RHS, _A2, _A1, _A1, _A2, _A2, _A1, types.int64, types.boolean[:, ::1]), **_JIT)
+@lazy_njit(types.void(RHS, _A2, _A1, _A1, _A2, _A2, _A1, types.int64, types.boolean[:, ::1]), **_JIT)
 def _probe(rhs, Y, sc, tt, P, ex, aux, n_rhs_out, J):
     n = Y.shape[1]
     f0 = np.empty(n)

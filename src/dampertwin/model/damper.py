@@ -12,7 +12,8 @@ Each configuration is one compiled right-hand side ``rhs_<cfg>(t, y, p, ex,
 aux, dy, out)`` with the solver's signature (``solver.rhs_signature``): it
 fills the state derivative ``dy`` and the output channels ``out``
 (layout.OUTPUTS) for one (t, y). ``aux`` is the active-valve map
-(``active_valve.pack_map``). Everything in SI.
+(``active_valve.pack_map``). Everything in SI. They compile at first use,
+not at import (``dampertwin.jit``).
 
 This file is the hub: the chamber volume balances (eq. 4.9-4.12) that join
 the submodels' flows, and the rod force (eq. 4.1). Each submodel reads its
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from ..jit import lazy_njit
 from ..solver import rhs_signature
 from .active_valve import active_flow, commanded_current, opening_flow
 from .active_valve_driver import effective_current
@@ -187,31 +189,31 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     out[O.T_OIL] = oil_temperature(y, oe + EX.T_oil, p) if extended else p[P.TEMP]
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
+@lazy_njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_damper(t, y, p, ex, aux, dy, out):
     """Damper configuration: tube displacement prescribed, rod fixed."""
     _damper(t, y, p, ex, aux, dy, out, False, False)
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
+@lazy_njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_module(t, y, p, ex, aux, dy, out):
     """Module configuration: the rod on the top mount (eq. 4.4)."""
     _damper(t, y, p, ex, aux, dy, out, True, False)
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
+@lazy_njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_damper_x(t, y, p, ex, aux, dy, out):
     """Damper configuration with the effect states (layout.CFG_DAMPER_X)."""
     _damper(t, y, p, ex, aux, dy, out, False, True)
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
+@lazy_njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_module_x(t, y, p, ex, aux, dy, out):
     """Module configuration with the effect states (layout.CFG_MODULE_X)."""
     _damper(t, y, p, ex, aux, dy, out, True, True)
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
+@lazy_njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_valve(t, y, p, ex, aux, dy, out):
     """Flow bench (thesis 2.7.2, 6.2.1): prescribed flow Q_in into an
     upstream volume of gas-free oil, one valve to a constant back pressure."""
@@ -232,7 +234,7 @@ def rhs_valve(t, y, p, ex, aux, dy, out):
     out[O.Q0] = Q
 
 
-@njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
+@lazy_njit(SIGNATURE, cache=True, error_model="numpy", _nrt=False)
 def rhs_topmount(t, y, p, ex, aux, dy, out):
     """Top-mount test bench (thesis 6.4): deflection X(t) prescribed, force out."""
     for i in range(out.shape[0]):

@@ -4,7 +4,8 @@ driven), ``module`` (rod on the top mount, the mount on the crosshead) and
 ``topmount`` (the mount alone on the crosshead); ``damper+`` / ``module+``
 the same with the hidden effects' states appended (layout.EXT_BLOCKS: the
 steel node, the entrained gas, the top-mount sleeve), run only when one of
-those effects is on.
+those effects is on. They compile at first use, not at import
+(``dampertwin.jit``).
 
 Sign conventions of the project (DESIGN.md 4): the stroke s grows in
 rebound (the rebound chamber shrinks), the rod force is positive in
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from ..jit import lazy_njit
 from ..solver import rhs_signature
 from . import aeration as ae
 from . import chambers as ch
@@ -269,31 +271,31 @@ def _damper(t, y, p, ex, dy, out, module, ext):
     out[O_MAG] = P_mag
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_damper(t, y, p, ex, aux, dy, out):
     """Damper test: tube displacement prescribed, rod on the crosshead."""
     _damper(t, y, p, ex, dy, out, False, -1)
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_damper_ext(t, y, p, ex, aux, dy, out):
     """Damper test with the hidden effects' states (layout.EXT_BLOCKS)."""
     _damper(t, y, p, ex, dy, out, False, X_DAMPER)
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_module(t, y, p, ex, aux, dy, out):
     """Module test: the rod on the top mount, the mount on the crosshead."""
     _damper(t, y, p, ex, dy, out, True, -1)
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_module_ext(t, y, p, ex, aux, dy, out):
     """Module test with the hidden effects' states (layout.EXT_BLOCKS)."""
     _damper(t, y, p, ex, dy, out, True, X_MODULE)
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_topmount(t, y, p, ex, aux, dy, out):
     """Top-mount bench: deflection prescribed at the base, mount on the crosshead."""
     for k in range(out.shape[0]):
@@ -307,7 +309,7 @@ def rhs_topmount(t, y, p, ex, aux, dy, out):
     out[O_DISS] = L_m + L_f
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_valve(t, y, p, ex, aux, dy, out):
     """Flow bench: a prescribed flow into an upstream volume of degassed oil,
     one passive valve to a constant back pressure."""
@@ -336,7 +338,7 @@ def rhs_valve(t, y, p, ex, aux, dy, out):
     out[O_DISS] = L
 
 
-@njit(SIG, **JIT)
+@lazy_njit(SIG, **JIT)
 def rhs_active_valve(t, y, p, ex, aux, dy, out):
     """The active valve alone on a pressure bench: prescribed pressure drop
     (ex) over it, outlet at the bench's back pressure, degassed oil."""
