@@ -231,3 +231,20 @@ def test_gas_release_tends_to_the_thesis_law_as_tau_goes_to_zero(base):
                                           "gas_release.tau_dis": tau}), _sine(F16), "damper", rtol=1e-7)
         dev[tau] = np.abs(r["rod force [N]"] - off).max() / np.ptp(off)
     assert dev[1e-6] < 1e-4 and dev[1e-6] < 0.05 * dev[1e-4], dev
+
+
+def test_every_hidden_truth_effect_has_a_documented_family():
+    """The discrepancy matrix's expected answer (bench/discrepancy.py, truth lab):
+    every hidden effect of the truth is approximated by at least one library
+    candidate, and every name a candidate lists is a truth switch or one of the
+    truth's always-on mechanisms (truth/solenoid.py, truth/seal.py)."""
+    from dampertwin.model.params import EFFECTS_LIBRARY
+    from dampertwin.truth.params import EFFECTS, OFF_BY_DEFAULT
+
+    always_on = {"solenoid", "seal"}
+    named = {n for r in EFFECTS_LIBRARY.values() for n in r.truth_effects}
+    assert named <= set(EFFECTS) | always_on, named - set(EFFECTS) - always_on
+    for h in OFF_BY_DEFAULT:
+        assert any(h in r.truth_effects for r in EFFECTS_LIBRARY.values()), h
+    for r in EFFECTS_LIBRARY.values():  # a new candidate documents what it approximates, both ways
+        assert bool(r.truth) == bool(r.truth_effects), r.name

@@ -145,7 +145,10 @@ class EffectRecord:
     mechanism(s) of the virtual laboratory's truth (``dampertwin.truth``; its
     switches ``truth.params.EFFECTS`` in brackets) it approximates: the
     expected answer of the discrepancy matrix (the docs page "Effect
-    library" is generated from these, ``effects_table``)."""
+    library" is generated from these, ``effects_table``). ``truth_effects``
+    names the hidden truth effects (``truth.params.OFF_BY_DEFAULT``) and the
+    truth's always-on mechanisms it approximates, machine-readable: the
+    families the discrepancy bench accepts as the answer for each."""
 
     name: str
     description: str
@@ -155,6 +158,7 @@ class EffectRecord:
     direction: str
     test: str
     truth: str = ""
+    truth_effects: tuple = ()
 
 
 _T = "test_simulation.py::test_effect_switch"
@@ -187,26 +191,30 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
     EffectRecord("piston_leakage", "laminar leakage past a worn piston band",
                  "White, Viscous Fluid Flow, eq. 3-44", False,
                  f"rebound peak force ({_M13})", "lower", _E,
-                 truth='eccentric annular leakage past the worn piston band with temperature-dependent viscosity (truth/chambers.py band_leakage, value chambers.BAND_H; also its shear force)'),
+                 truth='eccentric annular leakage past the worn piston band with temperature-dependent viscosity (truth/chambers.py band_leakage, value chambers.BAND_H; also its shear force)',
+                 truth_effects=("band_eccentricity",)),
     EffectRecord("active_valve_lag", "first-order lag of the active valve's opening behind the static opening of "
                  "its P/Q map (the flow keeps the sign of its pressure drop: passive); thesis 7.3, first discrepancy",
                  "Savaresi et al. 2010, ch. 2", False,
                  f"third-tube peak pressure; compression peak force ({_M16})",
                  "higher (the valve opens late: the pressure overshoots)", _E,
-                 truth="the pilot-operated solenoid valve's pilot poppet, control chamber (filled through A_F) and main stage (truth/solenoid.py; always on, not a switch)"),
+                 truth="the pilot-operated solenoid valve's pilot poppet, control chamber (filled through A_F) and main stage (truth/solenoid.py; always on, not a switch)",
+                 truth_effects=("solenoid",)),
     EffectRecord("aeration", "free air in the compression chamber, a state released below and dissolved above "
                  "its Henry equilibrium at finite rates (memory of low-pressure phases; thesis 7.3: aeration of the "
                  "compression chamber in rebound); was a static Boyle law, a re-parameterised gas content",
                  "Gholizadeh et al., IJFP 13 (2012); Duym, VSD 33 (2000)", False,
                  f"force-velocity phase lag; compression peak force ({_M16})",
                  "phase lag larger; compression peak lower (force builds up later)", _E,
-                 truth="entrained gas above the nominal content (value alpha_free) released / dissolved at finite rates in each chamber [gas_dissolution]; the compression chamber's share"),
+                 truth="entrained gas above the nominal content (value alpha_free) released / dissolved at finite rates in each chamber [gas_dissolution]; the compression chamber's share",
+                 truth_effects=("air_entrainment", "gas_dissolution")),
     EffectRecord("valve_friction_current", "Coulomb friction of the active valve's spool with memory (a stuck "
                  "spool holds its opening: opening and closing branches 2 F_f / A_sp apart), linear in the current, "
                  "growing or shrinking; thesis 7.3, third discrepancy (valve friction at the end of rebound)",
                  "Al-Bender et al. 2005 (Maxwell slip); Manring 2005, 4.6", False,
                  f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E,
-                 truth="no friction in the truth's valve: the nearest are the pilot-operated valve's opening / closing hysteresis (control-chamber filling) and its saturating, current-dependent magnetic force (truth/solenoid.py)"),
+                 truth="no friction in the truth's valve: the nearest are the pilot-operated valve's opening / closing hysteresis (control-chamber filling) and its saturating, current-dependent magnetic force (truth/solenoid.py)",
+                 truth_effects=("solenoid",)),
     EffectRecord("oil_thermal", "oil temperature state: the viscosity and the oil's (not the gas's or the wall's) "
                  "bulk modulus follow the heating, the oil expands (volume source in eq. 4.9), the gas heats "
                  "(ideal gas); output `oil temperature [K]` (the warm-up test's thermocouple); not named by the "
@@ -216,7 +224,8 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "excitation 8 Hz +-10 mm for 10 s, C_th 400 J/K; energy balance C_th dT + hA int(T - T_amb) dt "
                  "= int F s' dt)",
                  "> 5 K warmer; reserve pressure up by more than T/T0; compression peak larger", _E,
-                 truth='oil heating with the dissipated power, Walther viscosity, expansion, gas heating [oil_thermal, gas_heat_exchange]'),
+                 truth='oil heating with the dissipated power, Walther viscosity, expansion, gas heating [oil_thermal, gas_heat_exchange]',
+                 truth_effects=("two_node_thermal", "oil_thermal", "gas_heat_exchange")),
     EffectRecord("rod_friction_asymmetric", "rod seal film friction (Stribeck excess and viscous part) higher in "
                  "rebound than in compression; reformulated: a direction-dependent Coulomb level is, while the rod "
                  "slides, a constant offset a F_c (degenerate with the precharge / load-cell offset), the film "
@@ -224,15 +233,18 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "Mueller & Nau 1998, ch. 9; Olsson et al., EJC 4 (1998), 3.6", False,
                  f"friction force at the peak speeds in rebound / compression ({_M13})",
                  "rebound larger, compression smaller, by ~a s2 |v| (no offset fits it)", _E,
-                 truth="the rod seal's lip loaded by the rebound-chamber pressure and its oil film (truth/seal.py K_PR, C_V): higher in rebound"),
+                 truth="the rod seal's lip loaded by the rebound-chamber pressure and its oil film (truth/seal.py K_PR, C_V): higher in rebound",
+                 truth_effects=("seal",)),
     EffectRecord("top_mount_backlash", "free play of the top mount (smoothed dead zone)",
                  "Nordin & Gutman, Automatica 38 (2002)", False,
                  "top-mount force near zero deflection (top-mount sine 10 Hz +-1 mm)", "lower", _E,
-                 truth="no free play in the truth's mount today; nearest: the rubber's amplitude-dependent stiffness [payne]"),
+                 truth="the truth's top-mount free play: a sleeve mass in a clearance with Hunt-Crossley impacts (truth/freeplay.py) [top_mount_free_play]",
+                 truth_effects=("top_mount_free_play",)),
     EffectRecord("seal_friction_pressure", "rod seal friction growing with the rebound-chamber pressure",
                  "Mueller & Nau 1998, ch. 9", False,
                  f"friction force magnitude ({_M13})", "larger", _E,
-                 truth="the rod seal's pressure-loaded lip, F_max = F0 + K_PR (P_r - P_atm)+ (truth/seal.py; value seal.K_PR)"),
+                 truth="the rod seal's pressure-loaded lip, F_max = F0 + K_PR (P_r - P_atm)+ (truth/seal.py; value seal.K_PR)",
+                 truth_effects=("seal",)),
     EffectRecord("fixture_resonance", "the rig's fixture (crosshead) resonating on the load cell: the force "
                  "channel reads the force through a base-excited 2nd-order transmissibility (f_n, zeta); a "
                  "measurement-chain effect, the damper is unchanged; thesis 7.3, fourth suspect (mounting "
@@ -241,7 +253,8 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "force spectrum near f_n (module, random test); load-cell reading over a force step",
                  "higher near f_n (x sqrt(1 + 4 zeta^2) / (2 zeta) at f_n), unchanged below f_n / 10", _C,
                  truth="the test fixture: a crosshead mass on the load cell's stiffness and damping "
-                       "(truth/fixture.py) [fixture]"),
+                       "(truth/fixture.py) [fixture]",
+                 truth_effects=("fixture",)),
     EffectRecord("active_valve_driver", "the active valve's coil and current driver: the effective current "
                  "follows the command through a rate-limited first-order current loop and an eddy-current lag; "
                  "INVISIBLE in every standard test (the current is constant there): it shows only after a "
@@ -250,7 +263,8 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "third-tube pressure and rod force after a current step 0.32 -> 1.6 A (damper, 16 Hz)",
                  "follow the step late (closer to the 0.32 A run in the first ms); none at constant current", _C,
                  truth="the PI current driver with its saturating supply and the R-L coil (truth/solenoid.py "
-                       "coil) [current_driver]; invisible at constant current in the truth too"),
+                       "coil) [current_driver]; invisible at constant current in the truth too",
+                 truth_effects=("current_driver",)),
     EffectRecord("gas_release", "the undissolved gas share of eq. 4.14 a state per chamber, released below and "
                  "dissolved above its equilibrium at finite rates: no gas added (unlike aeration), the frozen "
                  "modulus is stiffer in fast cycles, with a memory of low-pressure phases; tau -> 0 is the "
@@ -259,7 +273,8 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  f"force-velocity phase lag; compression peak force ({_M16})",
                  "phase lag smaller; compression peak larger (the gas does not dissolve within a cycle)", _C,
                  truth="entrained gas per chamber relaxing to Henry's equilibrium, released over ~1 s and dissolved "
-                       "over ~20 s (truth/gas.py free_gas_rate) [gas_dissolution]"),
+                       "over ~20 s (truth/gas.py free_gas_rate) [gas_dissolution]",
+                 truth_effects=("air_entrainment", "gas_dissolution")),
 )}
 assert set(EFFECTS_LIBRARY) == set(EFFECT_INDEX), sorted(set(EFFECTS_LIBRARY) ^ set(EFFECT_INDEX))
 
