@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from dampertwin.fitting import simulate_friction
+from dampertwin.model.friction_only import simulate_friction
 from dampertwin.io import write_frame
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -154,6 +154,13 @@ def checkpoint(name: str) -> Path:
     return OUT / "checkpoints" / f"{name}.npz"
 
 
+def checkpoint_store(name: str):
+    """The file store of :func:`checkpoint` (the GA saves its state there; it opens no file itself)."""
+    from dampertwin.checkpoint import NpzStore
+
+    return NpzStore(checkpoint(name))
+
+
 def write_fit(out: Path, res, meta: dict, unit: str, design_hash: str, best: dict | None = None,
               extra: dict | None = None) -> None:
     """A fit's outputs: overlay (fitted design values as design overrides;

@@ -4,8 +4,8 @@ baseline valve fits applied."""
 
 import matplotlib.pyplot as plt
 
-from _common import (CONF, OUT, baseline, checkpoint, config, design_values, measured_dir, read_overlay, seed_for,
-                     stage, staged_dir, write_fit)
+from _common import (CONF, OUT, baseline, checkpoint, checkpoint_store, config, design_values, measured_dir,
+                     read_overlay, seed_for, stage, staged_dir, write_fit)
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
@@ -29,7 +29,7 @@ def main() -> None:
     out = OUT / "compliance"
     bandwidth = proto.get("sensors", {}).get("force")
     res = fit_compliance(d, meas, cal, GASettings.from_config(cfg.profile.ga.compliance), seed,
-                         checkpoint=checkpoint("compliance"), scheduler=cfg.profile.scheduler,
+                         checkpoint=checkpoint_store("compliance"), scheduler=cfg.profile.scheduler,
                          polish_settings=PolishSettings.from_config(cfg.profile.polish),
                          force_bandwidth=bandwidth)
     meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,

@@ -6,8 +6,8 @@
 
 import matplotlib.pyplot as plt
 
-from _common import (CONF, OUT, baseline, checkpoint, choice, config, measured_dir, seed_for, stage,
-                     staged_dir, write_fit)
+from _common import (CONF, OUT, baseline, checkpoint, checkpoint_store, choice, config, measured_dir, seed_for,
+                     stage, staged_dir, write_fit)
 from dampertwin import report
 from dampertwin.calibration.approach1 import fit_valve
 from dampertwin.calibration.ga import GASettings
@@ -20,21 +20,32 @@ from dampertwin.protocols import build_runs, load_protocol
 from dampertwin.variants import VALVE_DESIGNS, load_variant
 
 
+def fit_record(d, valve: str, path, profile, seed: int, checkpoint=None):
+    """The stage's fit of one flow-bench record file: the valves.yaml search
+    space, the documented bench (conf/test/flowbench.yaml), the profile's
+    GA and polish budgets (``profile``: a conf/profile mapping), through
+    :func:`dampertwin.calibration.approach1.fit_valve` (as ``dampertwin fit
+    valve``). Returns (FitResult, record, flow-bench protocol, bench)."""
+    cal = yaml_load_file(CONF / "calibration" / "valves.yaml")
+    fb = load_protocol(CONF / "test" / "flowbench.yaml")
+    bench = {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
+    meas, _ = read_record(path, "flowbench", conf=CONF, valve=valve)
+    res = fit_valve(d, valve, meas, cal, GASettings.from_config(profile["ga"]["valves"]), seed, bench=bench,
+                    checkpoint=checkpoint, scheduler=profile.get("scheduler"),
+                    polish_settings=PolishSettings.from_config(profile["polish"]))
+    return res, meas, fb, bench
+
+
 def main(name: str) -> None:
     valve, case = VALVE_DESIGNS[choice(name, VALVE_DESIGNS, "valve design")]
     cfg = config()
     d = baseline()
     if case:
         d = load_variant(CONF / "variant" / f"{case}.yaml").apply(d)
-    cal = yaml_load_file(CONF / "calibration" / "valves.yaml")
-    fb = load_protocol(CONF / "test" / "flowbench.yaml")
-    bench = {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
-    meas, _ = read_record(measured_dir() / "flowbench" / f"{name}.parquet", "flowbench", conf=CONF, valve=valve)
     out = OUT / "valves" / name
     seed = seed_for(f"flowbench_fit/{name}")
-    res = fit_valve(d, valve, meas, cal, GASettings.from_config(cfg.profile.ga.valves), seed, bench=bench,
-                    checkpoint=checkpoint(f"valve_{name}"), scheduler=cfg.profile.scheduler,
-                    polish_settings=PolishSettings.from_config(cfg.profile.polish))
+    res, meas, fb, bench = fit_record(d, valve, measured_dir() / "flowbench" / f"{name}.parquet", cfg.profile, seed,
+                                      checkpoint=checkpoint_store(f"valve_{name}"))
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
             "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
     run = next(r for r in build_runs(fb) if r.bench_valve == valve)

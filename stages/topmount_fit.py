@@ -5,8 +5,8 @@ squares and GA fit of the AutoBushFD parameters on the random record
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from _common import (CONF, OUT, baseline, checkpoint, choice, config, design_values, measured_dir, seed_for, stage,
-                     staged_dir, write_fit)
+from _common import (CONF, OUT, baseline, checkpoint, checkpoint_store, choice, config, design_values, measured_dir,
+                     seed_for, stage, staged_dir, write_fit)
 from dampertwin import kpi
 from dampertwin.calibration.approach1 import fit_top_mount
 from dampertwin.calibration.ga import GASettings
@@ -31,7 +31,7 @@ def main(name: str) -> None:
     out = OUT / "topmount" / name
     bandwidth = proto.get("sensors", {}).get("force")
     res, coef, kept = fit_top_mount(d, meas, cal, GASettings.from_config(cfg.profile.ga.topmount), seed,
-                              checkpoint=checkpoint(f"topmount_{name}"), scheduler=cfg.profile.scheduler,
+                              checkpoint=checkpoint_store(f"topmount_{name}"), scheduler=cfg.profile.scheduler,
                               polish_settings=PolishSettings.from_config(cfg.profile.polish),
                               force_bandwidth=bandwidth)
     best = {**res.best, "top_mount.F_LD": coef}  # sensor.* (nuisance) values are kept out of the overlay

@@ -12,7 +12,10 @@ import pytest
 
 from dampertwin.cli import main
 from dampertwin.cli_fit import parse_param_args
-from dampertwin.fitting import FitError, gauss_newton_ci, lugre_force, simulate_friction, fit_friction
+from dampertwin.calibration.ga import FitError
+from dampertwin.calibration.uncertainty import gauss_newton_ci
+from dampertwin.cli_fit_files import fit_friction
+from dampertwin.model.friction_only import lugre_force, simulate_friction
 from dampertwin.io import write_frame
 from dampertwin.model.rod_friction import lugre, stribeck
 

@@ -14,7 +14,7 @@ import pytest
 from dampertwin.calibration import friction_fit as ff
 from dampertwin.calibration.ga import ParamSpec
 from dampertwin.cli import main
-from dampertwin.fitting import fit_friction
+from dampertwin.cli_fit_files import fit_friction
 from dampertwin.io import write_frame
 from dampertwin.model.friction_only import simulate_friction
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from dampertwin.calibration.ga import Evaluator, GASettings, ParamSpec, run_ga
+from dampertwin.checkpoint import NpzStore
 
 SPECS = [ParamSpec("x", -2.0, 2.0), ParamSpec("y", 0.01, 10.0, "log")]
 SETTINGS = GASettings(population=16, reproduction_ratio=80, generations=12, mutation_probability=10)
@@ -51,13 +52,13 @@ def test_killed_fit_resumes_to_the_same_result(tmp_path):
         return bowl(X)
 
     with pytest.raises(KeyboardInterrupt):
-        run_ga(SPECS, Evaluator(dying), SETTINGS, seed=7, checkpoint=ck, progress=False)
+        run_ga(SPECS, Evaluator(dying), SETTINGS, seed=7, checkpoint=NpzStore(ck), progress=False)
     assert ck.is_file()
-    resumed = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, checkpoint=ck, progress=False)
+    resumed = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, checkpoint=NpzStore(ck), progress=False)
     fresh = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, progress=False)
     assert resumed.best == fresh.best and resumed.best_objective == fresh.best_objective
     # a checkpoint of other inputs is not reused
-    other = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, checkpoint=ck, progress=False, context="other data")
+    other = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, checkpoint=NpzStore(ck), progress=False, context="other data")
     assert other.best == fresh.best
 
 
@@ -88,6 +89,14 @@ def test_checkpoints_go_through_the_store_passed_in(tmp_path, monkeypatch):
     fresh = run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, progress=False)
     assert resumed.best == fresh.best and resumed.best_objective == fresh.best_objective
     assert store.saves == SETTINGS.generations
+
+
+def test_the_ga_refuses_a_checkpoint_path(tmp_path):
+    """A path is not a store: the GA does no file I/O, the caller opens the
+    file store (NpzStore); the error names what to pass."""
+    with pytest.raises(TypeError, match="NpzStore"):
+        run_ga(SPECS, Evaluator(bowl), SETTINGS, seed=7, checkpoint=tmp_path / "ck.npz", progress=False)
+    assert not (tmp_path / "ck.npz").exists()
 
 
 def test_dask_scheduler_runs_the_same_code_path():
@@ -155,8 +164,8 @@ def test_ga_stops_once_converged_and_resumes_alike(tmp_path):
         return bowl(X)
 
     with pytest.raises(KeyboardInterrupt):
-        run_ga(SPECS, Evaluator(dying), stall, seed=3, checkpoint=ck, progress=False)
-    resumed = run_ga(SPECS, Evaluator(bowl), stall, seed=3, checkpoint=ck, progress=False)
+        run_ga(SPECS, Evaluator(dying), stall, seed=3, checkpoint=NpzStore(ck), progress=False)
+    resumed = run_ga(SPECS, Evaluator(bowl), stall, seed=3, checkpoint=NpzStore(ck), progress=False)
     assert resumed.best == b.best and resumed.history.equals(b.history)
 
 

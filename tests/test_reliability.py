@@ -359,7 +359,7 @@ def _objective(monkeypatch, fake, wall=42.0):
     d = load(BASELINE)
     specs = [ParamSpec("piston_rebound.a", 0.0, 5000.0), ParamSpec("piston_rebound.b", -1.0, 1e5)]
     t = np.arange(11) / 10.0
-    ch = approach1._Channel(("p upstream [Pa]",), lambda c, nuis: c["p upstream [Pa]"])
+    ch = approach1.Channel(("p upstream [Pa]",), lambda c, nuis: c["p upstream [Pa]"])
     return approach1._batch_objective(d, specs, [(t, np.zeros(11), None, {})], "valve", ch, wall)
 
 

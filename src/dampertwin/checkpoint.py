@@ -5,7 +5,10 @@ restart; it does no file I/O itself.
 - :class:`NpzStore`: one ``.npz`` file, written atomically (temporary file
   + rename), the layout the stages have always used;
 - :class:`MemoryStore`: in memory (tests, notebooks);
-- :func:`as_store`: None / a path / a store -> a store or None.
+- :func:`as_store`: None / a path / a store -> a store or None (the stage
+  and CLI layer's conversion);
+- :func:`require_store`: None / a store, what the GA accepts (a path is
+  refused: the caller opens the file store).
 """
 
 from __future__ import annotations
@@ -70,4 +73,16 @@ def as_store(checkpoint) -> CheckpointStore | None:
     return checkpoint
 
 
-__all__ = ["CheckpointStore", "NpzStore", "MemoryStore", "as_store"]
+def require_store(checkpoint) -> CheckpointStore | None:
+    """None -> None; a store (``load()`` / ``save(state)``) -> itself; a
+    path or anything else -> TypeError (an optimiser does no file I/O: the
+    stage or CLI layer passes e.g. ``NpzStore(path)``)."""
+    if checkpoint is None:
+        return None
+    if isinstance(checkpoint, (str, os.PathLike)):
+        raise TypeError(f"checkpoint: got the path {str(checkpoint)!r}; pass a store (e.g. "
+                        f"dampertwin.checkpoint.NpzStore(path)): an optimiser does no file I/O")
+    return as_store(checkpoint)
+
+
+__all__ = ["CheckpointStore", "NpzStore", "MemoryStore", "as_store", "require_store"]

@@ -60,7 +60,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _cli_user_errors() -> tuple[type, ...]:
     """Every exception type that means bad input to some subcommand."""
-    from .fitting import FitError as SubmodelFitError
+    from .calibration.ga import FitError as SubmodelFitError
     from .importer import MappingError
 
     return (*user_error_types(), SubmodelFitError, MappingError)

@@ -1,6 +1,6 @@
-"""``dampertwin fit``: the command line's glue to the fit recipes of
-:mod:`dampertwin.fitting` (search spaces from ``--bounds`` / ``--param``,
-profile budgets, the friction options); the CLI layer, above the
+"""``dampertwin fit``: the command line's options (search spaces from
+``--bounds`` / ``--param``, profile budgets, the friction options) to the
+fits on files of :mod:`dampertwin.cli_fit_files`; the CLI layer, above the
 calibration core."""
 
 from __future__ import annotations
@@ -9,7 +9,8 @@ import os
 from pathlib import Path
 
 from .design import yaml_load
-from .fitting import FitError, fit_compliance, fit_friction, fit_topmount, fit_valve
+from .calibration.ga import FitError
+from .cli_fit_files import fit_compliance, fit_friction, fit_topmount, fit_valve
 
 
 def parse_param_args(items: list[str]) -> list[dict]:

@@ -173,7 +173,7 @@ def _batch_objective(design: Design, specs, cases, configuration: str, channel, 
     return _records(design, specs, cases, configuration, channel, max_wall_s, **sim_kw).scores
 
 
-class _Channel:
+class Channel:
     """Simulated signal compared with a record: ``fn(channels, nuisance)``
     with nuisance a dict key -> per-row values of the fitted ``sensor.*``."""
 
@@ -208,7 +208,10 @@ def _need(cal: dict, key: str, where: str):
     return cal[key]
 
 
-def _record_input(df: pd.DataFrame, column: str, kind: str, cutoff: float):
+def record_input(df: pd.DataFrame, column: str, kind: str, cutoff: float):
+    """(t [s] from 0, the recorded ``column`` as an Excitation of ``kind``
+    low-passed at ``cutoff`` [Hz]): a record's own input drives its
+    simulation (thesis 6.5)."""
     t = df["time [s]"].to_numpy()
     t = t - t[0]
     return t, Excitation.from_samples(t, df[column].to_numpy(), kind=kind, cutoff=cutoff)
@@ -225,9 +228,9 @@ def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, set
                               where=f"conf/calibration/valves.yaml: {kind}")
     cases = []
     for _, g in runs(measured):
-        t, ex = _record_input(g, "flow [m^3/s]", "flow", _need(cal, "input_cutoff", "conf/calibration/valves.yaml"))
+        t, ex = record_input(g, "flow [m^3/s]", "flow", _need(cal, "input_cutoff", "conf/calibration/valves.yaml"))
         cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
-    ch = _Channel(("p upstream [Pa]", "p downstream [Pa]"),
+    ch = Channel(("p upstream [Pa]", "p downstream [Pa]"),
                   lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
     rec = _records(design, specs, cases, "valve", ch, settings.max_wall_s, bench=bench)
     x0 = {s.key: design[s.key] for s in specs}
@@ -235,8 +238,8 @@ def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, set
                scheduler=scheduler, label=f"valve {valve}", progress=progress, context=_context(design, measured))
 
 
-def _through_sensor(column: str, bandwidth: float | None, fs: float, key: str = "sensor.force_bandwidth",
-                    offset_key: str = "sensor.force_offset", delay_key: str = "sensor.force_delay") -> "_Channel":
+def through_sensor(column: str, bandwidth: float | None, fs: float, key: str = "sensor.force_bandwidth",
+                    offset_key: str = "sensor.force_offset", delay_key: str = "sensor.force_delay") -> "Channel":
     """Compare through the bench's measurement chain: the simulated signal
     passes the transducer's bandwidth [Hz], the documented one or, when
     ``key`` is fitted as a nuisance parameter, each row's own (NaN rows
@@ -255,10 +258,10 @@ def _through_sensor(column: str, bandwidth: float | None, fs: float, key: str = 
         return np.array([(sensor_delay(sensor_lowpass(r, b, fs), d, fs) + o) if np.all(np.isfinite(r)) else r
                          for r, b, d, o in zip(X, bw, dl, off)])
 
-    return _Channel((column,), fn)
+    return Channel((column,), fn)
 
 
-def _force_chain_nominal(bandwidth: float | None) -> dict[str, float | None]:
+def force_chain_nominal(bandwidth: float | None) -> dict[str, float | None]:
     """Nominal values of the force chain's nuisance keys: the datasheet's
     bandwidth [Hz], no extra delay [s], a tared zero [N]."""
     return {"sensor.force_bandwidth": bandwidth, "sensor.force_delay": 0.0, "sensor.force_offset": 0.0}
@@ -271,15 +274,15 @@ def fit_compliance(design: Design, measured: pd.DataFrame, cal: dict, settings: 
     the simulated force passes the force transducer's bandwidth (documented,
     or with the force chain's ``sensor.*`` nuisance keys when the config lists them)."""
     specs = specs_from_config(design, cal.get("parameters"), where="conf/calibration/compliance.yaml: parameters",
-                              nuisance=_force_chain_nominal(force_bandwidth))
+                              nuisance=force_chain_nominal(force_bandwidth))
     cases = []
     for _, g in runs(measured):
-        t, ex = _record_input(g, "displacement [m]", "displacement",
+        t, ex = record_input(g, "displacement [m]", "displacement",
                               _need(cal, "input_cutoff", "conf/calibration/compliance.yaml"))
         cases.append((t, g["force [N]"].to_numpy(), ex, {"current": float(g["current [A]"].iloc[0])}))
-    ch = _through_sensor("rod force [N]", force_bandwidth, 1.0 / (cases[0][0][1] - cases[0][0][0]))
+    ch = through_sensor("rod force [N]", force_bandwidth, 1.0 / (cases[0][0][1] - cases[0][0][0]))
     rec = _records(design, specs, cases, "damper", ch, settings.max_wall_s)
-    nominal = _force_chain_nominal(force_bandwidth)
+    nominal = force_chain_nominal(force_bandwidth)
     x0 = {s.key: (design[s.key] if not s.key.startswith(NUISANCE) else nominal[s.key]) for s in specs}
     return run(rec, specs, settings, seed=seed, x0=x0, polish_settings=polish_settings, checkpoint=checkpoint,
                scheduler=scheduler, label="compliance", progress=progress, context=_context(design, measured))
@@ -302,7 +305,7 @@ def fit_static_curve(measured: pd.DataFrame, run: str, order: int = 5, design: D
     X = g["displacement [m]"].to_numpy()
     F = g["force [N]"].to_numpy()
     if design is not None:
-        t, ex = _record_input(g, "displacement [m]", "displacement", cutoff)
+        t, ex = record_input(g, "displacement [m]", "displacement", cutoff)
         _, ch, status = simulate_batch([design], ex, "topmount", rate=1.0 / (t[1] - t[0]), duration=t[-1] - t[0],
                                        channels=["top mount force [N]"])
         if status[0] != 0:
@@ -337,12 +340,12 @@ def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: G
                                _need(static, "input_cutoff", where + ": static"))
     specs = specs_from_config(design, cal.get("parameters"), prefix="top_mount.",
                               where="conf/calibration/topmount.yaml: parameters",
-                              nuisance=_force_chain_nominal(force_bandwidth))
+                              nuisance=force_chain_nominal(force_bandwidth))
     g = _run_of(measured, _need(cal, "dynamic_run", where), where + ": dynamic_run")
-    t, ex = _record_input(g, "displacement [m]", "displacement", _need(cal, "input_cutoff", where))
+    t, ex = record_input(g, "displacement [m]", "displacement", _need(cal, "input_cutoff", where))
     cases = [(t, g["force [N]"].to_numpy(), ex, {})]
-    ch = _through_sensor("top mount force [N]", force_bandwidth, 1.0 / (t[1] - t[0]))
-    nominal = _force_chain_nominal(force_bandwidth)
+    ch = through_sensor("top mount force [N]", force_bandwidth, 1.0 / (t[1] - t[0]))
+    nominal = force_chain_nominal(force_bandwidth)
     x0 = {s.key: (design[s.key] if not s.key.startswith(NUISANCE) else nominal[s.key]) for s in specs}
     row0 = np.array([[x0[s.key] for s in specs]])
     d_ls = design.with_overrides({"top_mount.F_LD": ls_coef})
@@ -357,3 +360,7 @@ def fit_top_mount(design: Design, measured: pd.DataFrame, cal: dict, settings: G
               scheduler=scheduler, label="top mount", progress=progress, context=_context(design, measured))
     res.start_objective = j_nominal  # "before" = the uncalibrated design: nominal curve and dynamics
     return res, coef, kept
+
+
+# the former private names, still imported by calibration/approach2.py
+_Channel, _record_input = Channel, record_input

@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from ..checkpoint import as_store
+from ..checkpoint import require_store
 from ..errors import UserError
 
 INFEASIBLE = 1e30  # objective of a failed simulation
@@ -35,7 +35,7 @@ NEAR_BOUND = 0.02
 class FitError(UserError):
     """A fit that cannot run or produce a result: unusable inputs (the
     message names the file / key / item) or every member infeasible. The
-    one fit error of the project (``dampertwin.fitting.FitError`` is it)."""
+    one fit error of the project."""
 NEAR_SPREAD = 0.1  # gene-space std of the initial members placed around the nominal design
 
 
@@ -208,8 +208,9 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
     a member of the first population and gives ``start_objective``. A
     checkpoint is reused only if specs, settings, seed, x0 and ``context``
     (a hash of the inputs: design, measured data) all match. ``checkpoint``:
-    a store (:mod:`dampertwin.checkpoint`) or a path (an .npz store); the
-    GA saves its state there after every generation."""
+    a store (:mod:`dampertwin.checkpoint`, e.g. ``NpzStore(path)``; not a
+    path: no file I/O here); the GA saves its state there after every
+    generation."""
     import pygad
     from ..progress import progress as tqdm
 
@@ -250,7 +251,7 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
         pop[1:near] = np.clip(g0 + NEAR_SPREAD * rng.standard_normal((near - 1, k)), 0, 1)
         pop[0] = g0
     start_gen, rows = 0, []
-    store = as_store(checkpoint)
+    store = require_store(checkpoint)
     sig = json.dumps({"specs": [s.__dict__ for s in specs], "ga": settings.__dict__, "seed": seed, "x0": x0,
                       "context": context}, sort_keys=True)
     z = store.load() if store else None

@@ -73,7 +73,7 @@ def run(problem, specs: list[ParamSpec], settings, *, seed: int = 0, x0: dict | 
         label: str = "fit", progress: bool = False, context: str = "", extra=()) -> FitResult:
     """Minimise ``problem`` over ``specs`` with the optimiser ``settings``
     name. ``x0``: the nominal values (a GA member, a polish start);
-    ``checkpoint``: a store or path for the GA's state; ``extra``: further
+    ``checkpoint``: a store for the GA's state (:mod:`dampertwin.checkpoint`); ``extra``: further
     unit-box start points of the least squares. The result lists the
     fitted values that end on their search bounds (``bound_hits``)."""
     if isinstance(settings, LeastSquaresSettings):

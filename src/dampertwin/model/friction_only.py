@@ -154,4 +154,11 @@ def simulate_friction(t, velocity, *, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_
                           float(a_s), float(alpha_s), float(a), float(v_reg), float(delta), int(substeps))
 
 
-__all__ = ["simulate_friction"]
+def lugre_force(dv, z, *, F_c, F_s, k_b, s2, c_comp, vd, a_s, alpha_s):
+    """LuGre rod friction (eq. 4.38-4.41) with keyword arguments named as in
+    the design YAML. dv: sliding velocity [m/s], z: bristle deflection [m].
+    Returns (dz/dt [m/s], force [N], positive opposing positive dv)."""
+    return lugre(float(z), float(dv), k_b, F_c, F_s, s2, c_comp, vd, a_s, alpha_s)
+
+
+__all__ = ["simulate_friction", "lugre_force"]

@@ -1,0 +1,230 @@
+"""``dampertwin fit`` on files: the command line's reading, defaults and
+writing around the submodel fits of
+:mod:`dampertwin.calibration.component_fits` (the CLI layer).
+
+Each function reads its records through the project's one measurement
+reader, takes default search spaces, budgets and benches from the
+repository's conf/ (conf/calibration/, conf/test/, conf/design/baseline.yaml)
+when not given, fits, adds each file's SHA-256 and, with ``out``, writes
+``out/fit.json`` and the plots. Search bounds come from a config (YAML
+``parameters:`` items, as in conf/calibration/) or ``name=lo:hi`` strings,
+never from the damper's design bounds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .calibration import component_fits as cf
+from .calibration import friction_fit as _ff
+from .calibration.ga import FitError
+from .calibration.polish import PolishSettings
+from .design import Design, load as load_design, yaml_load
+from .fit_plots import friction_plots, series_plots
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _write_json(path: Path, obj) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(obj, indent=2, sort_keys=False, default=float) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
+def read_fit_record(path, protocol=None, valve=None) -> pd.DataFrame:
+    """A record through the project's one measurement reader (protocol rate, duration, labels, magnitudes,
+    dead channels, force sign; ``protocol`` None: the one its metadata names, else a generic device record)."""
+    from .io import read_record
+
+    return read_record(Path(path), protocol, valve=valve, require=("time", "force", "displacement|velocity"))[0]
+
+
+def _read_all(paths, protocol=None, valve=None) -> list[pd.DataFrame]:
+    """Every measurement file a fit reads, in one call (one reader)."""
+    return [read_fit_record(p, protocol, valve=valve) for p in paths]
+
+
+def _with_shas(result: dict, out) -> dict:
+    """Each file's SHA-256 in ``result['files']``; ``out/fit.json`` written when ``out`` is given."""
+    for p, entry in result["files"].items():
+        entry["sha256"] = _sha(Path(p))
+    if out is not None:
+        _write_json(Path(out) / "fit.json", result)
+    return result
+
+
+def _repo_conf(*parts: str, instead: str) -> Path:
+    """conf/<parts> of the repository around the working directory; a
+    FitError saying what to give ``instead`` when there is none."""
+    from .config import repo_root
+
+    try:
+        return repo_root().joinpath("conf", *parts)
+    except FileNotFoundError:
+        raise FitError(f"no {instead} given and no dampertwin repository here for conf/{'/'.join(parts)}") from None
+
+
+def _default_design() -> Path:
+    return _repo_conf("design", "baseline.yaml", instead="--design")
+
+
+def _load(design) -> Design:
+    return design if isinstance(design, Design) else load_design(design or _default_design())
+
+
+def _study_doc(fname: str) -> dict:
+    """The study's calibration config conf/calibration/<fname>."""
+    return yaml_load(_repo_conf("calibration", fname, instead="--bounds / --param").read_text())
+
+
+def _protocol(fname: str) -> dict | None:
+    """conf/test/<fname>, None when absent."""
+    from .protocols import load_protocol
+
+    try:
+        return load_protocol(_repo_conf("test", fname, instead="bench description"))
+    except (FitError, FileNotFoundError):
+        return None
+
+
+def _flowbench_bench(cfg: dict) -> dict:
+    """The flow bench's upstream volume [m^3] and back pressure [Pa]: the
+    search config's ``bench:``, else the repository's documented bench
+    (conf/test/flowbench.yaml), as the study's flow-bench stage uses."""
+    if cfg.get("bench"):
+        return dict(cfg["bench"])
+    fb = _protocol("flowbench.yaml")
+    return {} if fb is None else {"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]}
+
+
+def _force_bandwidth(cfg: dict, protocol_file: str) -> float | None:
+    """The load cell's bandwidth [Hz]: ``force_bandwidth`` of the search
+    config, else the documented bench's (conf/test/<protocol_file> ``sensors.force``)."""
+    bw = cfg.get("force_bandwidth")
+    if bw is None:
+        from .protocols import ProtocolError
+
+        try:
+            bw = (_protocol(protocol_file) or {}).get("sensors", {}).get("force")
+        except (OSError, ProtocolError):
+            bw = None
+    return None if bw is None else float(bw)
+
+
+def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None, predict=(), out=None,
+              config: dict | None = None, seed: int = 0, population=None, generations=None, scheduler=None) -> dict:
+    """Fit one valve on a flow-bench record file by the study's flow-bench fit
+    (:func:`~dampertwin.calibration.component_fits.fit_valve_records`).
+    Default search space: conf/calibration/valves.yaml's items for the valve
+    kind, unless ``bounds`` / ``config['parameters']`` are given; GA and
+    polish settings from ``config['ga']`` / ``config['polish']`` (a profile)."""
+    d, cfg = _load(design), dict(config or {})
+    kind = "shim" if valve in cf.SHIM_VALVES else "intake"
+    items = bounds or cfg.get("parameters") or (_study_doc("valves.yaml")[kind] if valve in cf.VALVES else [])
+    cutoff = float(cfg.get("input_cutoff", _study_doc("valves.yaml").get("input_cutoff", 20.0)))
+    if valve not in cf.VALVES:
+        raise FitError(f"unknown valve {valve!r}; expected {', '.join(cf.VALVES)}")
+    frames = _read_all([data, *predict], "flowbench", valve=valve)
+    result, problem, sims = cf.fit_valve_records(
+        d, valve, list(zip(map(str, [data, *predict]), frames)), items, cutoff=cutoff, bench=_flowbench_bench(cfg),
+        settings=cf.ga_settings(cfg, population, generations),
+        polish_settings=PolishSettings.from_config(cfg.get("polish") or cf.DEFAULT_POLISH), seed=seed,
+        where=cfg.get("_where", "valve search space"), scheduler=scheduler)
+    _with_shas(result, out)
+    if out is not None:
+        series_plots(Path(out), problem, sims, "dp [Pa]", "valve",
+                     x_of=lambda t, ex, extra: (np.interp(t, ex.t0 + ex.dt * np.arange(len(ex.value)), ex.value)
+                                                * 60000.0, "flow [l/min]"))
+    return result
+
+
+def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
+                   current: float | None = None, population=None, generations=None, scheduler=None) -> dict:
+    """Fit gas content and oil bulk modulus (default) on a damper-level sine
+    record file (displacement input, force output, eq. 6.2)."""
+    d, cfg = _load(design), dict(config or {})
+    items = bounds or cfg.get("parameters") or _study_doc("compliance.yaml")["parameters"]
+    frames = [read_fit_record(p, "compliance" if current is None else None) for p in [data, *predict]]
+    result, problem, sims = cf.fit_compliance_records(
+        d, list(zip(map(str, [data, *predict]), frames)), items, cutoff=float(cfg.get("input_cutoff", 1000.0)),
+        force_bandwidth=_force_bandwidth(cfg, "compliance.yaml"), settings=cf.ga_settings(cfg, population, generations),
+        seed=seed, current=current, where=cfg.get("_where", "compliance search space"), scheduler=scheduler)
+    _with_shas(result, out)
+    if out is not None:
+        series_plots(Path(out), problem, sims, "rod force [N]", "compliance")
+    return result
+
+
+def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
+                 population=None, generations=None, scheduler=None) -> dict:
+    """Fit the top-mount parameters on a top-mount record file (displacement
+    input, force output, eq. 6.3). ``config['static'] = {run, order}``: the
+    static curve by least squares first; the GA uses ``config['runs']`` (or
+    ``config['dynamic_run']``; default: all but the static); the dynamic
+    stiffness is reported at ``config['determined']`` (default the
+    documented sweep of conf/test/topmount.yaml, middle amplitude)."""
+    from .calibration.identifiability import sweep_points
+
+    d, cfg = _load(design), dict(config or {})
+    items = bounds or cfg.get("parameters") or _study_doc("topmount.yaml")["parameters"]
+    frames = [read_fit_record(p, "topmount") for p in [data, *predict]]
+    where = dict(cfg.get("determined") or {})
+    if "frequencies" not in where:
+        proto = _protocol("topmount.yaml")
+        if proto is None:
+            raise FitError("no conf/test/topmount.yaml here for the dynamic-stiffness frequencies; give "
+                           "'determined: {frequencies: [Hz, ...], amplitude: m}' in the bounds file")
+        f, a = sweep_points(proto)
+        where.setdefault("frequencies", f)
+        where.setdefault("amplitude", a)
+    result, problem, sims = cf.fit_topmount_records(
+        d, list(zip(map(str, [data, *predict]), frames)), items, cutoff=float(cfg.get("input_cutoff", 500.0)),
+        force_bandwidth=_force_bandwidth(cfg, "topmount.yaml"), settings=cf.ga_settings(cfg, population, generations),
+        seed=seed, static=cfg.get("static"), want=cfg.get("runs") or ([cfg["dynamic_run"]] if cfg.get("dynamic_run")
+                                                                       else None),
+        where_k=where, where=cfg.get("_where", "top-mount search space"), scheduler=scheduler)
+    _with_shas(result, out)
+    if out is not None:
+        series_plots(Path(out), problem, sims, "top mount force [N]", "topmount")
+    return result
+
+
+def fit_friction(data, *, design: Design | str | os.PathLike | None = None, bounds: list[dict] | None = None,
+                 predict=(), out: str | os.PathLike | None = None, seed: int = 0, starts: int = 8,
+                 fixed: dict | None = None, effects=(), holdout_cycles: int | None = None,
+                 velocity: str = "record") -> dict:
+    """Fit the friction law (:mod:`dampertwin.calibration.friction_fit`) to a
+    friction record file (``time [s]``, ``displacement [m]``, ``force [N]``,
+    optional ``velocity [m/s]``; force positive opposing positive velocity).
+    ``bounds``: search items (name + bounds [+ scale]); default from the
+    record's magnitudes. Parameters not searched come from ``fixed``, then
+    from ``design`` (default conf baseline values). ``effects``: library
+    effects added to the law (asymmetric, free_play). ``holdout_cycles``:
+    cycles at the end of the record not fitted (default a third).
+    ``velocity``: 'record' (the velocity column if present) or
+    'displacement' (always differentiate the displacement)."""
+    paths = [Path(data)] + [Path(p) for p in predict]
+    frames = _read_all(paths)
+    d = _load(design)
+    base = {k: float(d[_ff.FRICTION_KEYS[k]]) for k in _ff.FRICTION_KEYS}
+    base.update({k: float(v) for k, v in (fixed or {}).items()})
+    result, recs, sims = cf.fit_friction_records([str(p) for p in paths], frames, base, items=bounds,
+                                                 effects=effects, holdout=holdout_cycles, seed=seed, starts=starts,
+                                                 velocity=velocity)
+    _with_shas(result, out)
+    if out is not None:
+        friction_plots(Path(out), paths, recs, sims, result)
+    return result
+
+
+__all__ = ["read_fit_record", "fit_valve", "fit_compliance", "fit_topmount", "fit_friction"]
