@@ -17,6 +17,7 @@ from _approach2 import OUT2, damper_record, profile_block
 from _common import CONF, baseline, config_hash, seed_for, stage, staged_dir, write_json
 from dampertwin.calibration import approach2, sensitivity as sens
 from dampertwin.design import yaml_load_file
+from dampertwin.errors import UserError
 from dampertwin.io import runs, write_frame
 
 FOCUS_S = 0.3  # s, width of the figure's focus window around the highest measured force (thesis fig. 7.6b, d)
@@ -44,6 +45,12 @@ def main() -> None:
           f"{[round(c, 3) for c in conv['change_per_doubling']]}) in {wall:.1f} s wall",
           flush=True)  # not an artifact: same config, same bytes
     W = sens.result_weights(res, prob.time, wset)
+    empty = sens.unweighted_groups(res.groups, W)
+    if empty:  # eq. 7.1 would score every member 0: that group's GA could not select
+        raise UserError(f"approach2_sensitivity: no instant where the index of {empty} is established (weights "
+                        f"rule {wset.rule!r}, N = {conv['n_final']}); raise n_max in conf/profile/"
+                        f"{cfg.profile.name}.yaml approach2.sensitivity or set conf/calibration/approach2.yaml "
+                        "weights.rule: estimate")
     lifts = approach2.nominal_channels(baseline(), prob, [f"lift {g} [m]" for g in res.groups],
                                        max_wall_s=float(p2.ga.max_wall_s))
     df = res.to_frame(prob.time)

@@ -194,6 +194,9 @@ def test_lower_bound_weights_ignore_undetermined_instants_and_favour_sharp_ones(
     np.testing.assert_allclose(W[0], [0.0, 0.1, 0.25, 0.55])
     We = sens.weights(S1, t, sens.WeightSettings(normalise="none", rule="estimate"))
     np.testing.assert_allclose(We[0], S1[0])  # the thesis as written: the estimate, band ignored
+    # a group whose interval covers 0 everywhere has no weight left: flagged (its GA could not select)
+    W2 = sens.weights(np.vstack([S1, S1]), t, sens.WeightSettings(), np.vstack([conf, np.full(4, 0.7)]))
+    assert not W2[1].any() and sens.unweighted_groups(["sharp", "vague"], W2) == ["vague"]
     # on an analysed design (N = 32): where group a drives the output alone (early) it keeps its largest
     # weights; where its share is not established it loses them, where the estimate alone would keep some
     tt = np.linspace(0, 1, 201)

@@ -389,6 +389,12 @@ def result_weights(res: SobolResult, t: np.ndarray, settings: WeightSettings = W
     return weights(res.S1, t, settings, res.S1_conf)
 
 
+def unweighted_groups(groups: Sequence[str], W: np.ndarray) -> list[str]:
+    """Groups whose weight curve is 0 at every instant (eq. 7.1 would score
+    every member of their GA 0)."""
+    return [g for g, w in zip(groups, np.asarray(W, float)) if not np.any(w > 0)]
+
+
 def weighted_integrals(abs_residual: np.ndarray, quad_weights: np.ndarray, W: np.ndarray) -> np.ndarray:
     """Eq. 7.1 for a batch: J[m, g] = sum_t W[g, t] |r[m, t]| w_t with w_t
     the trapezoid weights [s]; NaN rows (failed runs) stay NaN. Each row is
@@ -454,4 +460,4 @@ def figure(t: np.ndarray, res: SobolResult, W: np.ndarray, signal: np.ndarray | 
 
 
 __all__ = ["Group", "SobolResult", "WeightSettings", "salib_problem", "runs_needed", "sample", "first_order",
-           "analyse", "run", "run_converged", "is_prefix", "weight_change", "weights", "result_weights", "weighted_integrals", "row_integrals", "figure"]
+           "analyse", "run", "run_converged", "is_prefix", "weight_change", "weights", "result_weights", "unweighted_groups", "weighted_integrals", "row_integrals", "figure"]
