@@ -177,11 +177,13 @@ def test_convergence_loop_reuses_runs_and_stops_at_tol_or_cap():
 
 def test_weight_change_metric():
     live = np.array([True, True, True, False])
-    W_old = np.array([[1.0, 0.5, 0.0, 9.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 0.4, 0.0, 0.0]])
-    W_new = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
-    # group 0: |dw| = 0.5 over sum w_new = 1 (the masked last instant ignored); group 1: no weight either side;
-    # group 2: weight from none (|dw| = sum w_new); group 3: all weight lost
-    np.testing.assert_array_equal(sens.weight_change(W_new, W_old, live), [0.5, 0.0, 1.0, np.inf])
+    W_old = np.array([[1.0, 0.5, 0.0, 9.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 0.4, 0.0, 0.0],
+                      [0.2, 0.2, 0.0, 0.0]])
+    W_new = np.array([[1.0, 0.0, 0.5, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0],
+                      [1.0, 1.0, 0.0, 5.0]])
+    # group 0: a third of the weight moved from the 2nd to the 3rd instant (the masked last instant ignored);
+    # group 1: no weight either side; group 2: weight from none; group 3: all weight lost; group 4: rescaled only
+    np.testing.assert_allclose(sens.weight_change(W_new, W_old, live), [1 / 3, 0.0, 1.0, 1.0, 0.0], atol=1e-15)
 
 
 def test_lower_bound_weights_ignore_undetermined_instants_and_favour_sharp_ones():

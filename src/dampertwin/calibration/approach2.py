@@ -76,7 +76,8 @@ class SensitivitySettings:
                             "(conf/profile/*.yaml approach2.sensitivity)")
         tol = c.get("tol", 0.1)
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0:
-            raise UserError(f"{where}: tol = {tol!r}; expected a positive relative change of the weight curves")
+            raise UserError(f"{where}: tol = {tol!r}; expected a share of the weight that moves between "
+                            "instants, in (0, 1]")
         return cls(n, bool(c.get("second_order", True)), int(c.get("num_resamples", 100)),
                    float(c.get("conf_level", 0.95)), float(c.get("mask_rel_std", 1e-6)), n_max, float(tol))
 

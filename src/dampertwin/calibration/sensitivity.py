@@ -249,14 +249,21 @@ def is_prefix(groups: Sequence[Group], n_base: int, seed: int, second_order: boo
 
 def weight_change(W_new: np.ndarray, W_old: np.ndarray, live: np.ndarray) -> np.ndarray:
     """Change of each group's weight curve between two sample sizes (G,):
-    sum_t |w_2N - w_N| / sum_t w_2N over the instants ``live`` in both.
-    For a residual spread evenly in time this bounds the relative change
-    of the eq.-7.1 objective J_i (J = int w |r| dt) that the new sample
-    size brings. A group with no weight at either size changes by 0; one
-    that loses all its weight, by inf."""
-    d = np.abs(np.asarray(W_new, float) - np.asarray(W_old, float))[:, live].sum(axis=1)
-    ref = np.asarray(W_new, float)[:, live].sum(axis=1)
-    return np.divide(d, ref, out=np.where(d > 0, np.inf, 0.0), where=ref > 0)
+    the share of its weight that moves between instants,
+    0.5 sum_t |w_2N / sum w_2N - w_N / sum w_N| over the instants ``live``
+    in both, in [0, 1]. A curve's scale does not count: eq. 7.1 scaled by a
+    constant ranks a GA's members alike (steady-state selection keeps the
+    best), so only where the weight sits in time changes what the group's
+    GA minimises. A group with no weight at either size changes by 0; one
+    with weight at one size only, by 1."""
+    Wn = np.asarray(W_new, float)[:, live]
+    Wo = np.asarray(W_old, float)[:, live]
+    sn, so = Wn.sum(axis=1, keepdims=True), Wo.sum(axis=1, keepdims=True)
+    pn = np.divide(Wn, sn, out=np.zeros_like(Wn), where=sn > 0)
+    po = np.divide(Wo, so, out=np.zeros_like(Wo), where=so > 0)
+    d = 0.5 * np.abs(pn - po).sum(axis=1)
+    one = (sn[:, 0] > 0) != (so[:, 0] > 0)
+    return np.where(one, 1.0, d)
 
 
 def run_converged(groups: Sequence[Group], output: Callable[[np.ndarray], np.ndarray], n_base: int, n_max: int,
@@ -303,7 +310,8 @@ def run_converged(groups: Sequence[Group], output: Callable[[np.ndarray], np.nda
     record = {"n_sequence": seq, "n_final": n, "n_max": n_max, "tol": tol, "runs_simulated": sims,
               "runs_reused": reused, "change_per_doubling": [max(c) for c in changes],
               "change_per_doubling_per_group": [dict(zip(res.groups, c)) for c in changes], "converged": conv,
-              "metric": "max over groups of sum_t |w_2N - w_N| / sum_t w_2N (unmasked instants)"}
+              "metric": "max over groups of 0.5 sum_t |w_2N / sum w_2N - w_N / sum w_N| (the share of the weight "
+                        "that moves between instants; instants unmasked at both N)"}
     res.meta.update({"runs_simulated": sims, "converged": conv})
     return res, Yk, record
 
