@@ -196,6 +196,12 @@ def test_lower_bound_weights_ignore_undetermined_instants_and_favour_sharp_ones(
     np.testing.assert_allclose(W[0], [0.0, 0.1, 0.25, 0.55])
     We = sens.weights(S1, t, sens.WeightSettings(normalise="none", rule="estimate"))
     np.testing.assert_allclose(We[0], S1[0])  # the thesis as written: the estimate, band ignored
+    # smoothing keeps the zeros exact away from any weight (a running sum leaves ~1e-16 behind otherwise)
+    tl = np.arange(20000) * 2e-4
+    S = np.zeros((1, len(tl)))
+    S[0, 100:200] = np.random.default_rng(0).uniform(0.2, 0.9, 100)
+    Ws = sens.weights(S, tl, sens.WeightSettings(smooth_s=0.002), np.zeros_like(S))
+    assert np.all(Ws[0, 300:] == 0) and Ws[0, 150] > 0
     # a group whose interval covers 0 everywhere has no weight left: flagged (its GA could not select)
     W2 = sens.weights(np.vstack([S1, S1]), t, sens.WeightSettings(), np.vstack([conf, np.full(4, 0.7)]))
     assert not W2[1].any() and sens.unweighted_groups(["sharp", "vague"], W2) == ["vague"]

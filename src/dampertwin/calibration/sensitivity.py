@@ -45,6 +45,7 @@ from ..errors import UserError
 from .ga import ParamSpec
 
 EPS = np.finfo(float).eps
+ROUND_OFF = 1e-12  # [-] smoothed weights below this are round-off (indices are O(0.01-1)): set to 0
 
 
 @dataclass(frozen=True)
@@ -385,7 +386,8 @@ def weights(S1: np.ndarray, t: np.ndarray, settings: WeightSettings = WeightSett
         dt = float(np.median(np.diff(t)))
         n = max(1, int(round(settings.smooth_s / dt)))
         if n > 1:
-            W = np.maximum(uniform_filter1d(W, n, axis=1, mode="nearest"), 0.0)  # no round-off below 0
+            W = uniform_filter1d(W, n, axis=1, mode="nearest")
+            W[W < ROUND_OFF] = 0.0  # the filter's running sum leaves ~1e-16 far from any weight: exact 0 there
     if settings.normalise != "none":
         ref = W.max(axis=1) if settings.normalise == "max" else W.mean(axis=1)
         W = np.divide(W, ref[:, None], out=np.zeros_like(W), where=ref[:, None] > 0)
