@@ -99,7 +99,7 @@ def _approach2(prof: dict, d, meas: Path):
     ga = GASettings.from_config(p2["ga"])
     prob, sres, _ = approach2.sensitivity(d, rec, cal, s, _seed("approach2_sensitivity"), bandwidth=bw,
                                           max_wall_s=float(ga.max_wall_s), progress=False)
-    W = sens.weights(sres.S1, prob.time, sens.WeightSettings.from_config(cal["weights"]))
+    W = sens.result_weights(sres, prob.time, sens.WeightSettings.from_config(cal["weights"]))
     res, _ = approach2.fit(d, rec, cal, W, list(sres.groups), ga, _seed("approach2_fit"), bandwidth=bw,
                            progress=False)
     res.evaluations += int(sres.meta["runs"])

@@ -62,7 +62,7 @@ def test_sensitivity_and_concurrent_fit_on_a_lab_record(short_training, tmp_path
     assert Y.shape == (sens.runs_needed(2, 4), len(prob.measured))
     assert res.groups == list(a2.VALVES) and res.S1.shape == (4, len(prob.measured))
     assert np.all(np.isfinite(res.S1[:, ~res.masked]))
-    W = sens.weights(res.S1, prob.time, sens.WeightSettings.from_config(cal["weights"]))
+    W = sens.result_weights(res, prob.time, sens.WeightSettings.from_config(cal["weights"]))
     s = GASettings(population=4, reproduction_ratio=75, generations=1, mutation_probability=10, max_wall_s=120)
     fit, prob2 = a2.fit(design, rec, cal, W, res.groups, s, seed=5, bandwidth=1000.0, progress=False,
                         checkpoint=tmp_path / "ck.npz")
@@ -80,6 +80,18 @@ def test_bad_config_names_file_and_key():
         a2.groups_from_config(design, {**cal, "valves": {"piston_x": "shim"}})
     with pytest.raises(UserError, match="sensitivity: unknown key"):
         a2.SensitivitySettings.from_config({"n_bse": 3})
+    with pytest.raises(UserError, match="n_max = 48; expected a power of 2 >= n_base = 16"):
+        a2.SensitivitySettings.from_config({**cal["sensitivity"], "n_max": 48}, n_base=16)
+    with pytest.raises(UserError, match="n_max = 8"):
+        a2.SensitivitySettings.from_config({"n_max": 8}, n_base=16)
+    with pytest.raises(UserError, match="tol = 0"):
+        a2.SensitivitySettings.from_config({"tol": 0}, n_base=16)
+    st = a2.SensitivitySettings.from_config(cal["sensitivity"], n_base=16)
+    assert st.n_max == 16 and st.tol == cal["sensitivity"]["tol"]  # no n_max: no doubling
+    for name in ("ci", "full", "thesis"):  # every profile's cap is a reachable power of 2 above its n_base
+        p2 = yaml_load_file(CONF / "profile" / f"{name}.yaml")["approach2"]["sensitivity"]
+        st = a2.SensitivitySettings.from_config({**cal["sensitivity"], "n_max": p2["n_max"]}, n_base=p2["n_base"])
+        assert st.n_max > st.n_base
     with pytest.raises(UserError, match="no run"):
         a2.check_damper_record(pd.DataFrame({c: [0.0] for c in a2.DAMPER_COLUMNS}).assign(run="I1.6"), "f", ["I9"])
     t = np.arange(0, 3.0, 0.01)

@@ -46,26 +46,40 @@ DAMPER_COLUMNS = ("time [s]", "displacement [m]", "force [N]", "current [A]")
 
 @dataclass(frozen=True)
 class SensitivitySettings:
-    """Named settings of the sensitivity stage (profile: n_base; the rest
-    from conf/calibration/approach2.yaml ``sensitivity``)."""
+    """Named settings of the sensitivity stage (profile: n_base, n_max; the
+    rest from conf/calibration/approach2.yaml ``sensitivity``). The base
+    sample is doubled from ``n_base`` up to ``n_max`` (None: n_base, no
+    convergence check) until the weight curves change by less than ``tol``
+    (:func:`.sensitivity.run_converged`)."""
 
     n_base: int = 32
     second_order: bool = True
     num_resamples: int = 100
     conf_level: float = 0.95
     mask_rel_std: float = 1e-6
+    n_max: int | None = None
+    tol: float = 0.1
 
     @classmethod
     def from_config(cls, c, n_base: int | None = None, where: str = WHERE + ": sensitivity") -> "SensitivitySettings":
         if not hasattr(c, "get"):
             raise UserError(f"{where}: expected a mapping")
-        known = {"n_base", "second_order", "num_resamples", "conf_level", "mask_rel_std"}
+        known = {"n_base", "second_order", "num_resamples", "conf_level", "mask_rel_std", "n_max", "tol"}
         unknown = set(c) - known
         if unknown:
             raise UserError(f"{where}: unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
         n = int(n_base if n_base is not None else c.get("n_base", 32))
+        n_max = c.get("n_max")
+        n_max = n if n_max is None else int(n_max)
+        if n_max < n or n_max & (n_max - 1):
+            raise UserError(f"{where}: n_max = {n_max}; expected a power of 2 >= n_base = {n} "
+                            "(conf/profile/*.yaml approach2.sensitivity)")
+        tol = c.get("tol", 0.1)
+        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not tol > 0:
+            raise UserError(f"{where}: tol = {tol!r}; expected a share of the weight that moves between "
+                            "instants, in (0, 1]")
         return cls(n, bool(c.get("second_order", True)), int(c.get("num_resamples", 100)),
-                   float(c.get("conf_level", 0.95)), float(c.get("mask_rel_std", 1e-6)))
+                   float(c.get("conf_level", 0.95)), float(c.get("mask_rel_std", 1e-6)), n_max, float(tol))
 
 
 def groups_from_config(design: Design, cal: dict) -> tuple[list[GAGroup], GAGroup]:
@@ -227,11 +241,14 @@ def trapezoid_weights_per_case(cases) -> np.ndarray:
 
 def sensitivity(design: Design, measured: pd.DataFrame, cal: dict, settings: SensitivitySettings, seed: int, *,
                 bandwidth: float | None, max_wall_s: float | None, batch: int = 16, progress: bool = True,
-                scheduler: str | None = None):
+                scheduler: str | None = None, weights: "sens.WeightSettings | None" = None):
     """Time-resolved grouped Sobol indices of the simulated training force
     (valve groups only), the runs simulated ``batch`` at a time, locally or
     (a Dask ``scheduler`` address) one batch per task on the cluster: the
-    same batches, the same numbers. Returns (problem, SobolResult, Y)."""
+    same batches, the same numbers. N doubled up to ``settings.n_max`` until
+    the eq.-7.1 weight curves (``weights``) change by less than
+    ``settings.tol`` (``result.meta["convergence"]``). Returns (problem,
+    SobolResult, Y)."""
     from ..progress import progress as tqdm
 
     groups, _ = groups_from_config(design, cal)
@@ -252,10 +269,31 @@ def sensitivity(design: Design, measured: pd.DataFrame, cal: dict, settings: Sen
             parts.append(prob.simulated(X[lo:lo + batch]))
         return np.vstack(parts)
 
-    res, Y = sens.run(sg, output, settings.n_base, seed, second_order=settings.second_order,
-                      num_resamples=settings.num_resamples, conf_level=settings.conf_level,
-                      mask_rel_std=settings.mask_rel_std)
+    wset = weights or sens.WeightSettings()
+    res, Y, conv = sens.run_converged(sg, output, settings.n_base, settings.n_max or settings.n_base, settings.tol,
+                                      seed, lambda r: sens.result_weights(r, prob.time, wset),
+                                      second_order=settings.second_order, num_resamples=settings.num_resamples,
+                                      conf_level=settings.conf_level, mask_rel_std=settings.mask_rel_std)
+    res.meta["convergence"] = conv
     return prob, res, Y
+
+
+def nominal_channels(design: Design, prob: TrainingProblem, channels, max_wall_s: float | None = None) -> dict:
+    """Simulated ``channels`` (e.g. the valve lifts, ``lift <valve> [m]``)
+    of ``design`` on the training problem's runs, laid end to end like
+    ``prob.time``: {channel: (T,)}; NaN where a run failed."""
+    from ..simulation import simulate_batch
+
+    out = {c: [] for c in channels}
+    for t, _, ex, extra in prob.cases:
+        _, ch, _ = simulate_batch([design], ex, "damper", rate=1.0 / (t[1] - t[0]), duration=t[-1] - t[0],
+                                  channels=list(channels), max_wall_s=max_wall_s, **extra)
+        for c in channels:
+            y = np.full(len(t), np.nan)
+            v = np.asarray(ch[c][0], float)[:len(t)]
+            y[:len(v)] = v
+            out[c].append(y)
+    return {c: np.concatenate(v) for c, v in out.items()}
 
 
 def fit(design: Design, measured: pd.DataFrame, cal: dict, W: np.ndarray, group_names: list[str],
@@ -295,4 +333,4 @@ def force_agreement(t: np.ndarray, measured: np.ndarray, simulated: np.ndarray) 
 
 __all__ = ["SensitivitySettings", "TrainingProblem", "groups_from_config", "check_damper_record", "damper_cases",
            "excitation_fundamental", "input_cutoff",
-           "sensitivity", "fit", "force_agreement", "VALVES", "COMPLIANCE"]
+           "sensitivity", "nominal_channels", "fit", "force_agreement", "VALVES", "COMPLIANCE"]

@@ -16,9 +16,15 @@ Saltelli design with second order: 32 x (2 x 4 + 2) = 320 simulations.
   points at once, with SALib's bootstrap confidence (same resamples when
   given the same seed) and a mask for instants whose output does not vary
   between runs (there the index is undefined: NaN, weight 0).
-- :func:`weights` cleans the index curves into eq.-7.1 weights: clip,
-  optional moving-average smoothing, per-group normalisation (all named
-  settings, :class:`WeightSettings`).
+- :func:`run_converged` doubles the base sample N (up to a cap) until the
+  weight curves change by less than a tolerance between N and 2 N
+  (:func:`weight_change`), reusing the runs of N: SALib's design of 2 N
+  starts with the design of N (:func:`is_prefix`).
+- :func:`weights` turns the index curves into eq.-7.1 weights: by default
+  the lower bound of the bootstrap interval S1 - S1_conf (an instant where
+  the group's influence is not established weighs 0), clip, optional
+  moving-average smoothing, per-group normalisation (all named settings,
+  :class:`WeightSettings`).
 - :func:`weighted_integrals` is eq. 7.1,
   J_i = int_0^T I_i(t) |F_test(t) - F_sim(Theta_i, t)| dt, for a batch of
   simulations and all groups at once (trapezoid rule).
@@ -39,6 +45,7 @@ from ..errors import UserError
 from .ga import ParamSpec
 
 EPS = np.finfo(float).eps
+ROUND_OFF = 1e-12  # [-] smoothed weights below this are round-off (indices are O(0.01-1)): set to 0
 
 
 @dataclass(frozen=True)
@@ -190,6 +197,32 @@ def analyse(Y: np.ndarray, groups: Sequence[Group] | Sequence[str], **kw) -> Sob
     return SobolResult(names, S1, conf, masked, kw.get("conf_level", 0.95))
 
 
+def _evaluate(output: Callable[[np.ndarray], np.ndarray], X: np.ndarray) -> np.ndarray:
+    Y = np.asarray(output(X), float)
+    if Y.ndim != 2 or Y.shape[0] != len(X):
+        raise ValueError(f"sensitivity output must be (runs={len(X)}, instants), got {Y.shape}")
+    return Y
+
+
+def _analyse_blocks(Y: np.ndarray, groups, n_base: int, seed: int, second_order: bool, num_resamples: int,
+                    conf_level: float, mask_rel_std: float) -> tuple[SobolResult, np.ndarray]:
+    """Drop the base-sample blocks with a failed run, analyse the rest."""
+    step = len(Y) // n_base
+    ok_run = np.all(np.isfinite(Y), axis=1)
+    ok_block = ok_run.reshape(n_base, step).all(axis=1)
+    if ok_block.sum() < 2:
+        raise UserError(f"sensitivity: {int((~ok_run).sum())} of {len(Y)} simulations failed, leaving "
+                        f"{int(ok_block.sum())} complete base samples of {n_base}; the estimator needs at least 2 "
+                        f"(narrow the search windows or raise the wall-time cap)")
+    Yk = Y.reshape(n_base, step, -1)[ok_block].reshape(-1, Y.shape[1])
+    res = analyse(Yk, groups, second_order=second_order, num_resamples=num_resamples, conf_level=conf_level,
+                  seed=seed, mask_rel_std=mask_rel_std)
+    res.meta.update({"runs": len(Y), "n_base": n_base, "seed": seed, "second_order": second_order,
+                     "num_resamples": num_resamples, "masked_instants": int(res.masked.sum()),
+                     "failed_runs": int((~ok_run).sum()), "dropped_base_samples": int((~ok_block).sum())})
+    return res, Yk
+
+
 def run(groups: Sequence[Group], output: Callable[[np.ndarray], np.ndarray], n_base: int, seed: int, *,
         second_order: bool = True, num_resamples: int = 100, conf_level: float = 0.95,
         mask_rel_std: float = 1e-9) -> tuple[SobolResult, np.ndarray]:
@@ -201,23 +234,87 @@ def run(groups: Sequence[Group], output: Callable[[np.ndarray], np.ndarray], n_b
     and ``result.meta`` says how many were dropped; fewer than 2 complete
     blocks is an error. Returns (result, Y) with Y the complete blocks."""
     _, X = sample(groups, n_base, seed, second_order)
-    Y = np.asarray(output(X), float)
-    if Y.ndim != 2 or Y.shape[0] != len(X):
-        raise ValueError(f"sensitivity output must be (runs={len(X)}, instants), got {Y.shape}")
-    step = len(X) // n_base
-    ok_run = np.all(np.isfinite(Y), axis=1)
-    ok_block = ok_run.reshape(n_base, step).all(axis=1)
-    if ok_block.sum() < 2:
-        raise UserError(f"sensitivity: {int((~ok_run).sum())} of {len(X)} simulations failed, leaving "
-                        f"{int(ok_block.sum())} complete base samples of {n_base}; the estimator needs at least 2 "
-                        f"(narrow the search windows or raise the wall-time cap)")
-    Y = Y.reshape(n_base, step, -1)[ok_block].reshape(-1, Y.shape[1])
-    res = analyse(Y, groups, second_order=second_order, num_resamples=num_resamples, conf_level=conf_level,
-                  seed=seed, mask_rel_std=mask_rel_std)
-    res.meta.update({"runs": len(X), "n_base": n_base, "seed": seed, "second_order": second_order,
-                     "num_resamples": num_resamples, "masked_instants": int(res.masked.sum()),
-                     "failed_runs": int((~ok_run).sum()), "dropped_base_samples": int((~ok_block).sum())})
-    return res, Y
+    return _analyse_blocks(_evaluate(output, X), groups, n_base, seed, second_order, num_resamples, conf_level,
+                           mask_rel_std)
+
+
+def is_prefix(groups: Sequence[Group], n_base: int, seed: int, second_order: bool = True) -> bool:
+    """Whether SALib's design of 2 N starts with the design of N, row for
+    row (same seed): the Sobol' points are drawn in sequence (the
+    scrambling is fixed by the seed, no skip) and the Saltelli rows are laid
+    out base point by base point, so the N-design's runs can be reused."""
+    _, X = sample(groups, n_base, seed, second_order)
+    _, X2 = sample(groups, 2 * n_base, seed, second_order)
+    return bool(np.array_equal(X2[:len(X)], X))
+
+
+def weight_change(W_new: np.ndarray, W_old: np.ndarray, live: np.ndarray) -> np.ndarray:
+    """Change of each group's weight curve between two sample sizes (G,):
+    the share of its weight that moves between instants,
+    0.5 sum_t |w_2N / sum w_2N - w_N / sum w_N| over the instants ``live``
+    in both, in [0, 1]. A curve's scale does not count: eq. 7.1 scaled by a
+    constant ranks a GA's members alike (steady-state selection keeps the
+    best), so only where the weight sits in time changes what the group's
+    GA minimises. A group with no weight at either size changes by 0; one
+    with weight at one size only, by 1."""
+    Wn = np.asarray(W_new, float)[:, live]
+    Wo = np.asarray(W_old, float)[:, live]
+    sn, so = Wn.sum(axis=1, keepdims=True), Wo.sum(axis=1, keepdims=True)
+    pn = np.divide(Wn, sn, out=np.zeros_like(Wn), where=sn > 0)
+    po = np.divide(Wo, so, out=np.zeros_like(Wo), where=so > 0)
+    d = 0.5 * np.abs(pn - po).sum(axis=1)
+    one = (sn[:, 0] > 0) != (so[:, 0] > 0)
+    return np.where(one, 1.0, d)
+
+
+def run_converged(groups: Sequence[Group], output: Callable[[np.ndarray], np.ndarray], n_base: int, n_max: int,
+                  tol: float, seed: int, weigh: Callable[[SobolResult], np.ndarray], *, second_order: bool = True,
+                  num_resamples: int = 100, conf_level: float = 0.95,
+                  mask_rel_std: float = 1e-9) -> tuple[SobolResult, np.ndarray, dict]:
+    """:func:`run` with the base sample N doubled (n_base, 2 n_base, ...,
+    at most ``n_max``) until every group's weight curve (``weigh(result)``
+    -> (G, T)) changes by less than ``tol`` between N and 2 N
+    (:func:`weight_change`, max over the groups). The runs of N are reused
+    when the design of 2 N starts with them (:func:`is_prefix`; only the new
+    rows are simulated), else all rows are run again. Returns the result of
+    the last N, its Y, and a record: the N sequence, the runs simulated,
+    the change per doubling and ``converged`` (True / False; None when
+    n_max = n_base, i.e. no check)."""
+    if n_max < n_base or n_max & (n_max - 1):
+        raise UserError(f"sensitivity: n_max = {n_max}; expected a power of 2 >= n_base = {n_base}")
+    if not tol > 0:
+        raise UserError(f"sensitivity: convergence tol = {tol!r}; expected > 0")
+    kw = dict(second_order=second_order, num_resamples=num_resamples, conf_level=conf_level,
+              mask_rel_std=mask_rel_std)
+    X_old = Y_all = None
+    W_old = live_old = None
+    n, sims, changes, reused = n_base, 0, [], []
+    while True:
+        _, X = sample(groups, n, seed, second_order)
+        k = 0 if X_old is None or not np.array_equal(X[:len(X_old)], X_old) else len(X_old)
+        Y_new = _evaluate(output, X[k:])
+        sims += len(X) - k
+        reused.append(k)
+        Y_all = Y_new if k == 0 else np.vstack([Y_all, Y_new])
+        res, Yk = _analyse_blocks(Y_all, groups, n, seed, **kw)
+        W = weigh(res)
+        live = ~res.masked
+        if W_old is not None:
+            changes.append([float(c) for c in weight_change(W, W_old, live & live_old)])
+            if max(changes[-1]) < tol:
+                break
+        if 2 * n > n_max:
+            break
+        X_old, W_old, live_old, n = X, W, live, 2 * n
+    seq = [n_base * 2 ** i for i in range(len(reused))]
+    conv = None if len(seq) == 1 else bool(max(changes[-1]) < tol)
+    record = {"n_sequence": seq, "n_final": n, "n_max": n_max, "tol": tol, "runs_simulated": sims,
+              "runs_reused": reused, "change_per_doubling": [max(c) for c in changes],
+              "change_per_doubling_per_group": [dict(zip(res.groups, c)) for c in changes], "converged": conv,
+              "metric": "max over groups of 0.5 sum_t |w_2N / sum w_2N - w_N / sum w_N| (the share of the weight "
+                        "that moves between instants; instants unmasked at both N)"}
+    res.meta.update({"runs_simulated": sims, "converged": conv})
+    return res, Yk, record
 
 
 # ------------------------------------------------------------ weights (eq. 7.1)
@@ -225,8 +322,17 @@ def run(groups: Sequence[Group], output: Callable[[np.ndarray], np.ndarray], n_b
 class WeightSettings:
     """Clean-up of index curves into eq.-7.1 weights.
 
-    - ``clip``: [lo, hi] the estimates are clipped to (a first-order index
-      is in [0, 1]; the estimator's noise leaves it slightly outside);
+    - ``rule``: which value of the index an instant is weighted by:
+      ``lower_bound`` (default) = S1 - S1_conf, the lower end of SALib's
+      bootstrap confidence interval: the share of the force variance the
+      group is shown (at ``conf_level``) to have. An instant whose interval
+      reaches 0 (the group's influence there is not established) weighs 0;
+      of two instants with the same estimate, the sharper one weighs more.
+      The estimate alone (``estimate``, the thesis as written) weights the
+      estimator's noise like a signal: at N = 32, 11-37 % of the instants
+      had S1 < 0 and up to 26 % S1 > 1 (issue 37);
+    - ``clip``: [lo, hi] the values are clipped to (a first-order index
+      is in [0, 1]);
     - ``smooth_s``: centred moving-average window [s] (0: none), against
       estimator noise between neighbouring instants;
     - ``normalise``: per group, ``max`` (each weight curve peaks at 1),
@@ -236,14 +342,17 @@ class WeightSettings:
     clip: tuple[float, float] = (0.0, 1.0)
     smooth_s: float = 0.0
     normalise: str = "max"
+    rule: str = "lower_bound"
+
+    KEYS = ("rule", "clip", "smooth_s", "normalise")
 
     @classmethod
     def from_config(cls, c, where: str = "conf/calibration/approach2.yaml: weights") -> "WeightSettings":
         if not isinstance(c, dict) and not hasattr(c, "get"):
-            raise UserError(f"{where}: expected a mapping with clip, smooth_s, normalise")
-        unknown = set(c) - {"clip", "smooth_s", "normalise"}
+            raise UserError(f"{where}: expected a mapping with {', '.join(cls.KEYS)}")
+        unknown = set(c) - set(cls.KEYS)
         if unknown:
-            raise UserError(f"{where}: unknown key(s) {sorted(unknown)}; expected clip, smooth_s, normalise")
+            raise UserError(f"{where}: unknown key(s) {sorted(unknown)}; expected {', '.join(cls.KEYS)}")
         clip = list(c.get("clip", [0.0, 1.0]))
         if len(clip) != 2 or not clip[0] < clip[1]:
             raise UserError(f"{where}.clip: expected [lo, hi] with lo < hi, got {clip!r}")
@@ -253,24 +362,47 @@ class WeightSettings:
         nm = c.get("normalise", "max")
         if nm not in ("max", "mean", "none"):
             raise UserError(f"{where}.normalise: expected max, mean or none, got {nm!r}")
-        return cls((float(clip[0]), float(clip[1])), float(sm), str(nm))
+        rule = c.get("rule", "lower_bound")
+        if rule not in ("lower_bound", "estimate"):
+            raise UserError(f"{where}.rule: expected lower_bound or estimate, got {rule!r}")
+        return cls((float(clip[0]), float(clip[1])), float(sm), str(nm), str(rule))
 
 
-def weights(S1: np.ndarray, t: np.ndarray, settings: WeightSettings = WeightSettings()) -> np.ndarray:
-    """Index curves (G, T) -> weights (G, T) >= 0 (vectorised)."""
+def weights(S1: np.ndarray, t: np.ndarray, settings: WeightSettings = WeightSettings(),
+            conf: np.ndarray | None = None) -> np.ndarray:
+    """Index curves (G, T) -> weights (G, T) >= 0 (vectorised). With the
+    ``lower_bound`` rule the confidence half-widths ``conf`` (G, T) are
+    needed (S1_conf of :func:`first_order`)."""
     from scipy.ndimage import uniform_filter1d
 
-    W = np.clip(np.nan_to_num(np.asarray(S1, float), nan=0.0), *settings.clip)
+    S = np.asarray(S1, float)
+    if settings.rule == "lower_bound":
+        if conf is None:
+            raise ValueError("weights: the lower_bound rule needs the confidence half-widths (conf)")
+        S = S - np.asarray(conf, float)
+    W = np.clip(np.nan_to_num(S, nan=0.0), *settings.clip)
     W = np.maximum(W, 0.0)
     if settings.smooth_s > 0:
         dt = float(np.median(np.diff(t)))
         n = max(1, int(round(settings.smooth_s / dt)))
         if n > 1:
-            W = np.maximum(uniform_filter1d(W, n, axis=1, mode="nearest"), 0.0)  # no round-off below 0
+            W = uniform_filter1d(W, n, axis=1, mode="nearest")
+            W[W < ROUND_OFF] = 0.0  # the filter's running sum leaves ~1e-16 far from any weight: exact 0 there
     if settings.normalise != "none":
         ref = W.max(axis=1) if settings.normalise == "max" else W.mean(axis=1)
         W = np.divide(W, ref[:, None], out=np.zeros_like(W), where=ref[:, None] > 0)
     return W
+
+
+def result_weights(res: SobolResult, t: np.ndarray, settings: WeightSettings = WeightSettings()) -> np.ndarray:
+    """:func:`weights` of a :class:`SobolResult` (its S1 and S1_conf)."""
+    return weights(res.S1, t, settings, res.S1_conf)
+
+
+def unweighted_groups(groups: Sequence[str], W: np.ndarray) -> list[str]:
+    """Groups whose weight curve is 0 at every instant (eq. 7.1 would score
+    every member of their GA 0)."""
+    return [g for g, w in zip(groups, np.asarray(W, float)) if not np.any(w > 0)]
 
 
 def weighted_integrals(abs_residual: np.ndarray, quad_weights: np.ndarray, W: np.ndarray) -> np.ndarray:
@@ -290,30 +422,52 @@ def row_integrals(R: np.ndarray, w: np.ndarray) -> np.ndarray:
     return (np.ascontiguousarray(R, float) * np.asarray(w, float)[None, :]).sum(axis=1)
 
 
-def figure(t: np.ndarray, res: SobolResult, signal: np.ndarray | None = None, signal_label: str = "force [N]",
-           title: str = "First-order Sobol index of the simulated force (thesis fig. 7.6a)"):
-    """Index curves with their bootstrap band, over the training signal
-    (like thesis fig. 7.6a / b)."""
+def figure(t: np.ndarray, res: SobolResult, W: np.ndarray, signal: np.ndarray | None = None,
+           signal_label: str = "force [N]", beside: dict | None = None, beside_label: str = "",
+           focus: tuple[float, float] | None = None, title: str = "First-order Sobol index (thesis fig. 7.6)"):
+    """Like thesis fig. 7.6 a-d: one row per group with its index S1(t),
+    the bootstrap band (S1 -/+ S1_conf), its weight curve ``W`` and, on the
+    right axis, ``beside[group]`` (e.g. that valve's opening); the record's
+    ``signal`` on top. Left column the whole record, right column the
+    ``focus`` window [s] (t0, t1), if given."""
     import matplotlib.pyplot as plt
 
-    rows = 2 if signal is not None else 1
-    fig, axes = plt.subplots(rows, 1, figsize=(12, 3.2 * rows + 1), sharex=True, constrained_layout=True,
-                             squeeze=False)
-    ax = axes[0, 0]
-    for i, g in enumerate(res.groups):
-        line, = ax.plot(t, res.S1[i], lw=0.8, label=g)
-        ax.fill_between(t, np.clip(res.lower[i], -0.2, 1.2), np.clip(res.upper[i], -0.2, 1.2),
-                        color=line.get_color(), alpha=0.15, lw=0)
-    ax.set(ylabel="S1 [-]", ylim=(-0.1, 1.1), title=title)
-    ax.legend(loc="upper right", ncol=len(res.groups))
-    ax.grid(alpha=0.3)
-    if signal is not None:
-        axes[1, 0].plot(t, signal, "k", lw=0.6)
-        axes[1, 0].set(ylabel=signal_label)
-        axes[1, 0].grid(alpha=0.3)
-    axes[-1, 0].set(xlabel="time [s]")
+    G = len(res.groups)
+    top = 1 if signal is not None else 0
+    cols = 2 if focus is not None else 1
+    fig, axes = plt.subplots(G + top, cols, figsize=(7.5 * cols, 2.3 * (G + top) + 0.8), sharex="col",
+                             squeeze=False, constrained_layout=True)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for c in range(cols):
+        m = np.ones(len(t), bool) if c == 0 else (t >= focus[0]) & (t <= focus[1])
+        tm = t[m]
+        if top:
+            ax = axes[0, c]
+            ax.plot(tm, np.asarray(signal)[m], "k", lw=0.6)
+            ax.set(ylabel=signal_label, title="whole record" if c == 0 else "focus: highest force")
+            ax.grid(alpha=0.3)
+        for i, g in enumerate(res.groups):
+            ax = axes[top + i, c]
+            col = colours[i % len(colours)]
+            if beside is not None and g in beside:
+                ax2 = ax.twinx()
+                ax2.fill_between(tm, 0.0, np.asarray(beside[g])[m], color="0.6", alpha=0.35, lw=0, step="mid")
+                ax2.set_ylabel(beside_label, fontsize=8, color="0.4")
+                ax2.tick_params(labelsize=7, colors="0.4")
+            ax.fill_between(tm, np.clip(res.lower[i][m], -0.2, 1.2), np.clip(res.upper[i][m], -0.2, 1.2),
+                            color=col, alpha=0.25, lw=0, label="S1 -/+ conf")
+            ax.plot(tm, res.S1[i][m], color=col, lw=0.7, label="S1")
+            ax.plot(tm, W[i][m], color="k", lw=0.8, ls="--", label="weight (eq. 7.1)")
+            ax.set(ylim=(-0.2, 1.2), ylabel=f"{g}\n[-]")
+            ax.set_zorder(3)
+            ax.patch.set_visible(False)
+            ax.grid(alpha=0.3)
+            if i == 0 and c == 0:
+                ax.legend(loc="upper right", fontsize=7, ncol=3)
+        axes[-1, c].set(xlabel="time [s]")
+    fig.suptitle(title, fontsize=10)
     return fig
 
 
 __all__ = ["Group", "SobolResult", "WeightSettings", "salib_problem", "runs_needed", "sample", "first_order",
-           "analyse", "run", "weights", "weighted_integrals", "row_integrals", "figure"]
+           "analyse", "run", "run_converged", "is_prefix", "weight_change", "weights", "result_weights", "unweighted_groups", "weighted_integrals", "row_integrals", "figure"]
