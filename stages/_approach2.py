@@ -1,6 +1,7 @@
 """Shared helpers of the approach-2 stage scripts (thesis chapter 7, issue
 12): output folder, profile block, the measured training record and the two
-calibrated designs compared side by side."""
+calibrated designs compared side by side. Approach 2's design reads no
+approach-1 result (its top mount: stage approach2_topmount)."""
 
 from __future__ import annotations
 
@@ -34,11 +35,13 @@ def damper_record(test: str, runs=None, tail_s=None):
 
 
 def approach2_design():
-    """baseline + approach-2 valves / compliance + approach-1 top mount
-    (table 6.4 limits; issue 12)."""
+    """baseline + approach-2 valves / compliance + approach 2's top mount,
+    fitted on the module-level test (thesis 7.2; stage approach2_topmount).
+    Nothing of approach 1."""
     d = baseline().with_overrides(read_overlay(OUT2 / "fit" / "overlay.yaml"))
-    return d.with_overrides(read_overlay(OUT / "topmount" / "baseline" / "overlay.yaml"))
+    return d.with_overrides(read_overlay(OUT2 / "topmount" / "overlay.yaml"))
 
 
 def approach1_design():
+    """The approach-1 design, only to be simulated beside approach 2's (the comparison)."""
     return load(OUT / "designs" / "baseline_1.6.yaml", map_dirs=[CONF / "design"])

@@ -1,5 +1,6 @@
 """DVC stage `approach2_simulate`: the approach-2 design (valves and
-compliance of approach2_fit, top mount of the approach-1 fit) and, side by
+compliance of approach2_fit, top mount of approach2_topmount: the
+module-level test, thesis 7.2) and, side by
 side, the approach-1 design (results/approach1/designs/baseline_1.6.yaml)
 through the approach-2 verification tests, each driven by the recorded
 displacement of the measurement (thesis 6.5 / L1430):

@@ -137,7 +137,7 @@ def test_atomic_write_leaves_no_partial_file(tmp_path, monkeypatch):
 def test_all_shipped_protocols_validate_and_build():
     P = load_all(CONF / "test")
     assert set(P) == {"flowbench", "compliance", "topmount", "curving", "monosine", "random", "training",
-                      "verification", "monosine16", "thermal", "friction"}
+                      "verification", "monosine16", "thermal", "friction", "module_topmount"}
     runs = {k: build_runs(v, seed=5) for k, v in P.items()}
     fb = {r.bench_valve: r for r in runs["flowbench"]}
     assert fb["piston_rebound"].excitation.value.max() == pytest.approx(80 / 60000)
@@ -150,6 +150,8 @@ def test_all_shipped_protocols_validate_and_build():
     assert not any(r.name.startswith("sweep_A0.001_f") and float(r.name.split("_f")[1]) > 20 for r in runs["topmount"])
     tr = runs["training"][0].excitation
     assert tr.value.max() == pytest.approx(0.025, rel=1e-2)
+    mt = runs["module_topmount"]  # the module-level top-mount test: the training signal on the module (thesis 7.2)
+    assert all(r.configuration == "module" for r in mt) and np.array_equal(mt[0].excitation.value, tr.value)
     th = runs["thermal"]
     assert {r.current for r in th} == {1.6, 0.32} and all(r.configuration == "damper" for r in th)
     assert th[0].excitation.t_end - th[0].excitation.t0 == pytest.approx(10.0)

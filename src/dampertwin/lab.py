@@ -80,7 +80,8 @@ TRUTH_RTOL = 1e-8        # the truth's integration tolerance (the fits: 1e-4)
 # costs 20 % more lab time (35 files: 33.7 s against 28.2 s wall, 2 cores).
 TRUTH_ATOL = 3e-7
 REST_S = 20.0            # [s] pause between two runs of a test sequence (temperature drift clock)
-APPROACH2_TESTS = ("training", "verification", "monosine16")  # recorded on the baseline when declared
+# recorded on the baseline when declared; module_topmount: the module-level top-mount test (thesis 7.2, fig. 7.2)
+APPROACH2_TESTS = ("training", "verification", "monosine16", "module_topmount")
 EXTRA_TESTS = ("thermal", "friction")  # recorded on the baseline when conf/test declares them (issue 11)
 TEMPERATURE = "oil temperature [K]"
 # the thermocouple on the outer tube when the sample's benches do not describe one: first order with a
@@ -92,6 +93,13 @@ THERMOCOUPLE_NOISE = 0.03  # [K] one sigma
 # the set precharge (the recorded value) through a 0-25 bar gauge of 0.25 % FS class: the real precharge is
 # +5 kPa off (zero error) and scatters by 0.3 % from fill to fill
 PRECHARGE_FILL = {"offset": 5000.0, "scatter": 0.003}
+DEFLECTION = "top mount deflection [m]"
+# the module test's LVDT (thesis 7.2, fig. 7.2: on the rod through an adapter, its body on the top-mount
+# housing; zeroed on the unloaded mount) when the sample's benches do not describe one: the carrier
+# demodulator's 2nd-order Bessel filter at 600 Hz (conf/test documents a 2nd-order Butterworth at 500 Hz),
+# 0.4 % gain and 20 um zero error, 0.1 um converter step, 1 um noise (a +-5 mm AC LVDT with its conditioner)
+LVDT = {"filter": "bessel", "order": 2, "corner": 600.0, "gain": 0.996, "offset": 2.0e-5, "resolution": 1.0e-7}
+LVDT_NOISE = 1.0e-6  # [m] one sigma
 
 REQUIRED_KEYS = ("factors", "values", "effects", "benches")
 REQUIRED_KEYS_3 = ("truth", "benches")
@@ -107,7 +115,8 @@ BENCH_KEYS = {
     "precharge": {"offset", "scatter"},  # friction test: the gas fill's error (real = set + offset, x (1 + scatter N))
 }
 SENSOR_KEYS = {"filter", "order", "corner", "gain", "offset", "resolution"}
-CHANNELS = ("displacement [m]", "force [N]", "rod acceleration [m/s^2]", "flow [m^3/s]", "dp [Pa]", "oil temperature [K]")
+CHANNELS = ("displacement [m]", "force [N]", "rod acceleration [m/s^2]", "flow [m^3/s]", "dp [Pa]", "oil temperature [K]",
+            "top mount deflection [m]")
 TEMPERATURE_DEFAULTS = {"start": 0.0, "start_scatter": 0.0, "drift": 0.0, "scatter": 0.0,
                         "viscosity_per_K": -0.03, "modulus_per_K": -0.005}
 
@@ -391,10 +400,11 @@ def _sensor_specs(benches: dict) -> dict:
 
 def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, bench: dict | None = None,
            oil_dT: float = 0.0, gain_scatter: float = 1.0, temperature: bool = False,
-           nominal: Design | None = None) -> pd.DataFrame:
+           nominal: Design | None = None, deflection: bool = False) -> pd.DataFrame:
     """Measure one run on the hidden sample behind ``design`` with the oil
     ``oil_dT`` [K] warmer than the design's and the actuator gain scattered;
-    ``temperature``: the oil temperature recorded too (a thermocouple). A run
+    ``temperature``: the oil temperature recorded too (a thermocouple);
+    ``deflection``: a module run's rod against the top-mount housing too (LVDT). A run
     with ``meta["precharge [Pa]"]`` (friction test) is measured with the reserve
     gas filled to it (with the fill's error, PRECHARGE_FILL) and records it."""
     b = sample["benches"]
@@ -405,7 +415,10 @@ def record(run: Run, design: Design, sample: dict, rng: np.random.Generator, ben
         r = _truth_run(run, design, sample, rng, bench, oil_dT, real, precharge, nominal)
     else:
         r = _model_run(run, design, sample, rng, bench, oil_dT, real, precharge)
-    return _recorded(run, r, b, rng, precharge, oil_dT, temperature)
+    if deflection and run.configuration != "module":
+        raise LabError(f"{run.test}/{run.name}: the top-mount deflection (LVDT) is a module test's channel, "
+                       f"not of configuration {run.configuration!r}")
+    return _recorded(run, r, b, rng, precharge, oil_dT, temperature, deflection)
 
 
 def _truth_run(run, design, sample, rng, bench, oil_dT, real, precharge, nominal):
@@ -444,10 +457,11 @@ def _model_run(run, design, sample, rng, bench, oil_dT, real, precharge):
     return r
 
 
-def _recorded(run, r, b, rng, precharge, oil_dT, temperature) -> pd.DataFrame:
+def _recorded(run, r, b, rng, precharge, oil_dT, temperature, deflection=False) -> pd.DataFrame:
     """The benches' transducers on a run's channels."""
     fs = run.rate
-    noise, specs = {TEMPERATURE: THERMOCOUPLE_NOISE, **b["noise"]}, {TEMPERATURE: THERMOCOUPLE, **_sensor_specs(b)}
+    noise = {TEMPERATURE: THERMOCOUPLE_NOISE, DEFLECTION: LVDT_NOISE, **b["noise"]}
+    specs = {TEMPERATURE: THERMOCOUPLE, DEFLECTION: LVDT, **_sensor_specs(b)}
 
     def meas(name: str, x: np.ndarray) -> np.ndarray:
         s = specs.get(name, {})
@@ -474,6 +488,12 @@ def _recorded(run, r, b, rng, precharge, oil_dT, temperature) -> pd.DataFrame:
         if temperature:  # drawn last: the other channels' noise is that of a record without it
             T_oil = r[TEMPERATURE] if isinstance(r, _truth_result()) else r[TEMPERATURE] + oil_dT
             cols[TEMPERATURE] = meas(TEMPERATURE, T_oil)
+        if deflection:  # drawn after the others: their noise is that of a record without it
+            if isinstance(r, _truth_result()):
+                X = r[DEFLECTION]
+            else:  # the model's rod is on a rigid crosshead: its position u - s is the mount's deflection
+                X = np.asarray(r["displacement [m]"]) - np.asarray(r["stroke [m]"])
+            cols[DEFLECTION] = meas(DEFLECTION, X)
     df = pd.DataFrame(cols)
     df.insert(0, "run", run.name)
     return df
@@ -546,8 +566,9 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
     sg = b.get("scatter", {}).get("actuator_gain", 0.0)
     gains = [1.0 + sg * rng.standard_normal() for _ in runs]
     thermo = "temperature" in pc.get("sensors", {})
-    frames = [record(r, d, sample, rng, bench, oil_dT=dT, gain_scatter=g, temperature=thermo, nominal=nominal)
-              for r, dT, g in zip(runs, temps, gains)]
+    lvdt = "deflection" in pc.get("sensors", {})
+    frames = [record(r, d, sample, rng, bench, oil_dT=dT, gain_scatter=g, temperature=thermo, nominal=nominal,
+                     deflection=lvdt) for r, dT, g in zip(runs, temps, gains)]
     truth = {}
     if is_truth_sample(sample):
         from .truth import TRUTH_VERSION

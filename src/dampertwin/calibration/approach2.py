@@ -17,7 +17,8 @@ Problem / cost / optimiser as in approach 1 (:mod:`.approach1`): the same
 batched record evaluation (``approach1._records``: measured - simulated
 force through the documented load-cell bandwidth, failed members with their
 reason), only the costs (eq. 7.1 weights) and the optimiser differ. The top
-mount is the approach-1 fit (table 6.4 limits; issue 12). No file I/O here;
+mount is fitted on the module-level test (:mod:`.module_topmount`, thesis
+7.2; issue 37). No file I/O here;
 calibration never reads the lab's hidden sample.
 """
 

@@ -64,7 +64,8 @@ _SCHEMA: dict[str, dict[str, Any]] = {
     "friction": {"configuration": "damper", "amplitude": float, "velocity": float, "currents": list,
                  "precharges": list, "cycles": int, "rate": float},
 }
-SENSOR_KEYS = ("force", "acceleration", "temperature")  # documented bandwidths [Hz] a protocol may name
+# documented bandwidths [Hz] a protocol may name; deflection: the module test's LVDT on the rod (thesis 7.2)
+SENSOR_KEYS = ("force", "acceleration", "temperature", "deflection")
 PROTOCOLS = tuple(_SCHEMA)
 
 

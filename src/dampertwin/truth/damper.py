@@ -32,7 +32,7 @@ from .fluid import BETA_T, JIT, P_ATM, P_REF, RHO0, density, viscosity
 from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, EX_T0, O_A_ROD, O_DISS, O_DP, O_F_ACT,
                      O_F_MU, O_F_ROD, O_F_TM, O_I, O_LIFT, O_MAG, O_MASS, O_P_B, O_P_C, O_P_K, O_P_R, O_P_RES, O_Q_A,
                      O_Q_BP, O_Q_BV, O_Q_IN, O_Q_P, O_S, O_T_GAS, O_T_OIL, O_U, O_V, O_X_BC, O_X_BI, O_X_M, O_X_P,
-                     O_X_PI, O_X_PR, PO, SO, TO, E_GE, E_TW, E_VS, E_XS, EXT_AT)
+                     O_X_PI, O_X_PR, O_X_TM, PO, SO, TO, E_GE, E_TW, E_VS, E_XS, EXT_AT)
 from .seal import seal
 
 SIG = rhs_signature()
@@ -251,6 +251,7 @@ def _damper(t, y, p, ex, dy, out, module, ext):
         out[O_F_ROD] = F_d
         out[O_F_TM] = F_lc
         out[O_A_ROD] = -a_rod
+        out[O_X_TM] = x_top - y[S_FIX + fx.XF]  # the rod against the top-mount housing (module LVDT)
     else:
         out[O_F_ROD] = F_lc
     out[O_P_R], out[O_P_C], out[O_P_B], out[O_P_RES], out[O_P_K] = P_r, P_c, P_b, P_res, P_k

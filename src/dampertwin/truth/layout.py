@@ -75,8 +75,8 @@ OUTPUTS = ("displacement [m]", "velocity [m/s]", "stroke [m]", "rod force [N]", 
            "lift main stage [m]", "lift pilot [m]", "flow piston [m^3/s]", "flow base [m^3/s]",
            "flow bypass [m^3/s]", "flow active valve [m^3/s]", "coil current [A]", "oil temperature [K]",
            "gas temperature [K]", "oil mass [kg]", "dissipated power [W]", "magnetic power [W]",
-           "flow [m^3/s]", "dp [Pa]", "lift [m]")
+           "flow [m^3/s]", "dp [Pa]", "lift [m]", "top mount deflection [m]")
 (O_U, O_V, O_S, O_F_ROD, O_F_TM, O_F_ACT, O_A_ROD, O_F_MU, O_P_R, O_P_C, O_P_B, O_P_RES, O_P_K, O_X_PR, O_X_PI,
  O_X_BC, O_X_BI, O_X_M, O_X_P, O_Q_P, O_Q_BV, O_Q_BP, O_Q_A, O_I, O_T_OIL, O_T_GAS, O_MASS, O_DISS, O_MAG, O_Q_IN,
- O_DP, O_LIFT) = range(len(OUTPUTS))
+ O_DP, O_LIFT, O_X_TM) = range(len(OUTPUTS))
 N_OUT = len(OUTPUTS)
