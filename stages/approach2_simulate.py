@@ -1,9 +1,14 @@
-"""DVC stage `approach2_simulate`: the approach-2 design (valves and
-compliance of approach2_fit, top mount of approach2_topmount: the
-module-level test, thesis 7.2) and, side by
-side, the approach-1 design (results/approach1/designs/baseline_1.6.yaml)
+"""DVC stages `approach2_simulate` and `approach1_verification`: one design
 through the approach-2 verification tests, each driven by the recorded
 displacement of the measurement (thesis 6.5 / L1430):
+
+    python stages/approach2_simulate.py approach2   # valves and compliance of approach2_fit,
+                                                     # top mount of approach2_topmount (module test, thesis 7.2)
+    python stages/approach2_simulate.py approach1   # the approach-1 design (results/approach1/designs/
+                                                     # baseline_1.6.yaml), for the comparison only
+
+Approach 2's own path (sensitivity, fit, top mount, this stage with
+`approach2`) reads nothing of approach 1; only the comparison does. Tests:
 - monosine16 (module, 16 Hz / 0.5 m/s / 10 mm, three currents; table 7.1),
 - random (module, the road-noise records of the three baseline cases; table 7.2),
 - verification (damper, pseudo-random; force, overfitting check L1561).
@@ -13,6 +18,8 @@ module tests' recorded displacement is low-passed at report.RECORD_CUTOFF
 the training record it checks, at conf/calibration/approach2.yaml
 input_cutoff (its motion stays below 30 Hz).
 -> results/approach2/sim/<approach1|approach2>/<test>.parquet."""
+
+import sys
 
 import pandas as pd
 
@@ -40,9 +47,14 @@ def records(test: str):
     return [(name, float(g["current [A]"].iloc[0]), g) for name, g in runs(df)]
 
 
-def main() -> None:
+DESIGNS = {"approach1": approach1_design, "approach2": approach2_design}
+
+
+def main(name: str) -> None:
     cfg = config()
-    designs = {"approach1": approach1_design(), "approach2": approach2_design()}
+    if name not in DESIGNS:
+        raise SystemExit(f"approach2_simulate.py: {name!r}; expected one of {', '.join(DESIGNS)}")
+    designs = {name: DESIGNS[name]()}
     cal = yaml_load_file(CONF / "calibration" / "approach2.yaml")
     for test, conf_ in TESTS.items():
         proto = load_protocol(CONF / "test" / f"{test}.yaml")
@@ -73,4 +85,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    stage(main, "approach2_simulate")
+    stage(main, "approach2_simulate" if sys.argv[1:] == ["approach2"] else "approach1_verification")

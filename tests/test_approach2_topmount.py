@@ -126,10 +126,14 @@ def test_approach2_stages_read_no_approach1_result():
     stages = {k: v for k, v in _dvc_stages().items() if k.startswith("approach2_")}
     assert "approach2_topmount" in stages
     assert "results/approach2/topmount/overlay.yaml" in stages["approach2_simulate"]["deps"]
-    # the one approach-1 file: the approach-1 design approach2_simulate runs beside approach 2's (the comparison)
-    side_by_side = {("approach2_simulate", "results/approach1/designs/baseline_1.6.yaml")}
-    a1 = {(k, d) for k, s in stages.items() for d in s["deps"] if "results/approach1" in d}
-    assert a1 <= side_by_side, a1
+    # approach 2's own path reads nothing of approach 1; only the comparison table reads the approach-1
+    # design's simulations, which a stage of their own (approach1_verification) makes
+    a1 = {(k, d) for k, s in stages.items() for d in s["deps"]
+          if "results/approach1" in d or d.startswith("results/approach2/sim/approach1")}
+    assert a1 <= {("approach2_tables", "results/approach2/sim/approach1")}, a1
+    every = _dvc_stages()
+    assert "results/approach1/designs/baseline_1.6.yaml" in every["approach1_verification"]["deps"]
+    assert every["approach2_simulate"]["outs"] == ["results/approach2/sim/approach2"]
     sys.path.insert(0, str(ROOT / "stages"))
     import inspect
 
