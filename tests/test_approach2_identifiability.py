@@ -104,3 +104,24 @@ def test_fit_fits_exactly_the_determined_set(short_training):  # noqa: F811
     assert Wk[:, 0].tolist() == [1.0, 4.0]  # each kept group keeps its own weight row
     with pytest.raises(UserError, match="piston_rebound.e.*rerun the approach2_identifiability stage"):
         a2.free_groups(groups, W, ["piston_rebound.e"])
+
+
+def test_side_by_side_names_the_fitted_and_the_fixed(tmp_path):
+    import json
+    import sys
+
+    sys.path.insert(0, str(ROOT / "stages"))
+    try:
+        from approach2_tables import fixed_section
+    finally:
+        sys.path.remove(str(ROOT / "stages"))
+    p = tmp_path / "metrics.json"
+    p.write_text(json.dumps({"fitted_valve_parameters": ["piston_rebound.F_preload", "piston_rebound.a"],
+                             "fixed_at_drawings": {"piston_rebound.c": -200.0, "base_intake.a": 150.0},
+                             "identifiability": "results/approach2/identifiability/determined.json"}))
+    md = fixed_section(p)
+    rows = [r for r in md.splitlines() if r.startswith("| piston_rebound") or r.startswith("| base_intake")]
+    assert rows[0].replace(" ", "") == "|piston_rebound|F_preload,a|c|" and rows[1].replace(" ", "") == "|base_intake|-|a|"
+    assert "identifiability/determined.json" in md
+    p.write_text(json.dumps({"values": {}}))
+    assert "rerun `dvc repro`" in fixed_section(p)
