@@ -41,11 +41,12 @@ def report(dec: dict, rule: Rule, profile: str) -> str:
     for g, d in dec.items():
         lines.append(f"| {g} | {', '.join(k.split('.')[-1] for k in d['determined']) or '-'} | "
                      f"{', '.join(k.split('.')[-1] for k in d['fixed']) or '-'} |")
-    lines.append("\nWhy each fixed one was left out (analysed with those chosen before it):\n")
+    lines.append("\nWhy each fixed one was left out (analysed with those chosen before it; the flags of that "
+                 "analysis):\n")
     for g, d in dec.items():
         for s in d["steps"]:
             if not s["joins"]:
-                lines.append(f"- {g}.{s['parameter'].split('.')[-1]}: {s['why not']}")
+                lines.append(f"- tried {s['parameter']}: {s['why not']}")
     return "\n".join(lines) + "\n"
 
 

@@ -173,7 +173,7 @@ def figure(decision: dict, rule: Rule, title: str):
         ax.invert_yaxis()
         ax.grid(alpha=0.3, axis="x")
         if k == 0:
-            ax.legend(fontsize=7, loc="lower right")
+            ax.legend(fontsize=7, loc="best", framealpha=0.9)
         C = np.array([[d["all"]["correlation"][a][b] for b in keys] for a in keys])
         ax = axes[1, k]
         im = ax.imshow(np.abs(C), vmin=0, vmax=1, cmap="viridis")
