@@ -1,7 +1,9 @@
 """DVC stage `approach2_fit`: concurrent sensitivity-weighted GAs (thesis
 Algorithm 1, eq. 7.1) on the damper-level training record: one GA per valve
-(weights from approach2_sensitivity), one unweighted for gas content and oil
-bulk modulus; best solution by the unweighted residual. Outputs
+(weights from approach2_sensitivity) over the parameters the
+approach2_identifiability stage found determined (the others stay at the
+drawings' values; a valve with none has no GA), one unweighted for gas
+content and oil bulk modulus; best solution by the unweighted residual. Outputs
 results/approach2/fit/: overlay.yaml, history.parquet, metrics.json,
 progress.png (like fig. 7.7), training.png (force, measured vs fitted)."""
 
@@ -21,6 +23,21 @@ from dampertwin.errors import UserError
 from dampertwin.io import write_frame
 
 
+def decision() -> tuple[list[str], list[str]]:
+    """(valve parameters to fit, those fixed at the drawings' values) of the
+    approach2_identifiability stage."""
+    import json
+
+    src = OUT2 / "identifiability" / "determined.json"
+    if not src.is_file():
+        raise UserError(f"{src}: not found; run the approach2_identifiability stage first")
+    doc = json.loads(src.read_text())
+    if not isinstance(doc.get("determined"), list) or not isinstance(doc.get("fixed"), list):
+        raise UserError(f"{src}: expected lists 'determined' and 'fixed' of valve parameter keys; rerun the "
+                        "approach2_identifiability stage")
+    return list(doc["determined"]), list(doc["fixed"])
+
+
 def main() -> None:
     cfg, p2 = profile_block()
     cal = yaml_load_file(CONF / "calibration" / "approach2.yaml")
@@ -32,13 +49,14 @@ def main() -> None:
     ind = pd.read_parquet(src)  # this pipeline's own artifact (NaN where masked): no measured-data checks
     groups = list(dict.fromkeys(ind["group"]))
     W = np.vstack([ind.loc[ind["group"] == g, "weight [-]"].to_numpy() for g in groups])
+    free, fixed = decision()
     settings = GASettings.from_config(p2.ga)
     seed = seed_for("approach2_fit")
     d = baseline()
     ck = OUT2 / "checkpoints" / "approach2_fit.npz"
     t0 = time.perf_counter()
     res, prob = approach2.fit(d, rec, cal, W, groups, settings, seed, bandwidth=proto.get("sensors", {}).get("force"),
-                              checkpoint=ck, scheduler=cfg.profile.scheduler)
+                              checkpoint=ck, scheduler=cfg.profile.scheduler, free=free)
     wall = time.perf_counter() - t0
     print(f"approach2_fit: {res.evaluations} evaluations in {wall:.1f} s wall "
           f"({wall / max(res.evaluations, 1):.2f} s each)", flush=True)  # not an artifact: same config, same bytes
@@ -53,7 +71,9 @@ def main() -> None:
             "improvement_pct": 100 * (1 - res.best_objective / res.start_objective),
             "group_objectives_best": res.best_group_objectives, "best_evaluation": res.best_evaluation,
             "evaluations": res.evaluations, "failed_simulations": res.failed, "failure_reasons": res.failures,
-            "values": res.best, "bound_hits": res.bound_hits})
+            "values": res.best, "bound_hits": res.bound_hits, "fitted_valve_parameters": free,
+            "fixed_at_drawings": {k: float(d[k]) for k in fixed},
+            "identifiability": "results/approach2/identifiability/determined.json (identifiability.png)"})
         fig = progress_figure(res.history, res.groups, f"Concurrent GAs, profile {cfg.profile.name} (thesis fig. 7.7)")
         fig.savefig(tmp / "progress.png", dpi=100)
         plt.close(fig)

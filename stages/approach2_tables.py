@@ -127,10 +127,15 @@ def main() -> None:
                f"(profile {cfg.profile.name}; {source}); lower is better\n\n" + kpi.to_markdown(side, 3)
                + "\nPer-approach tables 7.1 / 7.2:\n\n" + "".join(
                    f"### {ap}\n\n" + md(tables[ap][0]) + "\n" + md(tables[ap][1]) + "\n"
-                   for ap in APPROACHES) + bound_section(OUT2 / "fit" / "metrics.json"))
+                   for ap in APPROACHES) + bound_section(OUT2 / "fit" / "metrics.json")
+               + fixed_section(OUT2 / "fit" / "metrics.json"))
     for _, r in side.iterrows():
         metrics[r["approach"]] = {k: float(v) for k, v in r.items() if k != "approach"}
     metrics["bound_hits"] = json.loads((OUT2 / "fit" / "metrics.json").read_text()).get("bound_hits", [])
+    fit = json.loads((OUT2 / "fit" / "metrics.json").read_text())
+    metrics["valve_parameters"] = {"fitted": fit.get("fitted_valve_parameters"),
+                                   "fixed_at_drawings": sorted(fit.get("fixed_at_drawings", {})),
+                                   "why": fit.get("identifiability")}
     metrics["flags"] = {"count": len(flags71) + len(flags72), "thresholds": {k: float(v) for k, v in fl.items()},
                         "cells": flags71 + flags72}
     write_json(OUT2 / "metrics.json", metrics)
@@ -147,6 +152,31 @@ def bound_section(path) -> str:
             f"parameter stands in for an effect the model lacks (within {NEAR_BOUND:.0%} of the interval, in its "
             "own scale).\n\n"
             + kpi.to_markdown(rows, 4))
+
+
+def fixed_section(path) -> str:
+    """Markdown: the valve parameters approach 2 fitted and those it left at
+    the drawings' values because the training record does not determine them."""
+    m = json.loads(path.read_text())
+    fitted, fixed = m.get("fitted_valve_parameters"), m.get("fixed_at_drawings")
+    if fitted is None or fixed is None:
+        return "\nThe approach-2 fit names no identifiability decision (an older fit): rerun `dvc repro`.\n"
+
+    def by_valve(keys):
+        out = {}
+        for k in keys:
+            v, p = k.split(".", 1)
+            out.setdefault(v, []).append(p)
+        return out
+
+    f, x = by_valve(fitted), by_valve(fixed)
+    rows = pd.DataFrame([{"valve": v, "fitted": ", ".join(f.get(v, [])) or "-",
+                          "fixed at the drawings' value": ", ".join(x.get(v, [])) or "-"}
+                         for v in dict.fromkeys([*f, *x])])
+    return ("\n### Approach-2 valve parameters: fitted and fixed\n\nEach valve's table-6.1 parameters are fitted "
+            "only where the training record determines them (95 % interval and correlation rule, "
+            "conf/calibration/approach2.yaml `identifiability`); the others stay at the drawings' values. "
+            f"Decision and figure: {m.get('identifiability')}.\n\n" + kpi.to_markdown(rows, 4))
 
 
 if __name__ == "__main__":

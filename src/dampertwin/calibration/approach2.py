@@ -299,14 +299,19 @@ def nominal_channels(design: Design, prob: TrainingProblem, channels, max_wall_s
 
 def fit(design: Design, measured: pd.DataFrame, cal: dict, W: np.ndarray, group_names: list[str],
         settings: GASettings, seed: int, *, bandwidth: float | None, checkpoint=None, scheduler=None,
-        progress: bool = True) -> tuple[ConcurrentResult, TrainingProblem]:
+        progress: bool = True, free=None) -> tuple[ConcurrentResult, TrainingProblem]:
     """Algorithm 1 on the training record: the valve groups weighted by
     ``W`` (rows in ``group_names`` order, from the sensitivity stage), the
-    compliance unweighted."""
+    compliance unweighted. ``free``: the valve parameter keys the record
+    determines (the identifiability stage's decision; None: all of
+    ``parameters``); the others stay at the drawings' values and a group
+    with none left has no GA."""
     groups, comp = groups_from_config(design, cal)
     if [g.name for g in groups] != list(group_names):
         raise UserError(f"{WHERE}: valve groups {[g.name for g in groups]} differ from those of the sensitivity "
                         f"weights {list(group_names)}; rerun the sensitivity stage")
+    if free is not None:
+        groups, W = free_groups(groups, W, free)
     specs = [s for g in groups + [comp] for s in g.specs]
     prob = TrainingProblem(design, measured, specs, float(_need(cal, "input_cutoff", WHERE)), bandwidth,
                            settings.max_wall_s)
@@ -323,6 +328,38 @@ def fit(design: Design, measured: pd.DataFrame, cal: dict, W: np.ndarray, group_
     return res, prob
 
 
+def identifiability(design: Design, measured: pd.DataFrame, cal: dict, W: np.ndarray, group_names: list[str], *,
+                    bandwidth: float | None, max_wall_s: float | None) -> tuple[dict, TrainingProblem]:
+    """Which of each valve group's ``parameters`` the training record
+    determines at the drawings' values, each group on its eq.-7.1-weighted
+    residual (``W`` rows in ``group_names`` order; :mod:`.determined`, rule
+    from ``identifiability`` of conf/calibration/approach2.yaml). Returns
+    ({group: decision}, problem)."""
+    from .determined import Rule, decide
+
+    rule = Rule.from_config(_need(cal, "identifiability", WHERE))
+    groups, _ = groups_from_config(design, cal)
+    if [g.name for g in groups] != list(group_names):
+        raise UserError(f"{WHERE}: valve groups {[g.name for g in groups]} differ from those of the sensitivity "
+                        f"weights {list(group_names)}; rerun the sensitivity stage")
+    specs = [s for g in groups for s in g.specs]
+    prob = TrainingProblem(design, measured, specs, float(_need(cal, "input_cutoff", WHERE)), bandwidth, max_wall_s)
+    return decide(prob.records, groups, W, {s.key: design[s.key] for s in specs}, rule), prob
+
+
+def free_groups(groups: list[GAGroup], W: np.ndarray, free) -> tuple[list[GAGroup], np.ndarray]:
+    """The valve groups reduced to the ``free`` keys (rows of ``W`` of
+    groups left with none dropped); a key no group has is an error."""
+    free = set(free)
+    known = {s.key for g in groups for s in g.specs}
+    if free - known:
+        raise UserError(f"identifiability decision names {sorted(free - known)}, not in {WHERE} parameters "
+                        f"({sorted(known)}); rerun the approach2_identifiability stage")
+    kept = [(i, GAGroup(g.name, tuple(s for s in g.specs if s.key in free))) for i, g in enumerate(groups)]
+    kept = [(i, g) for i, g in kept if g.specs]
+    return [g for _, g in kept], W[[i for i, _ in kept]]
+
+
 # ------------------------------------------------------------ verification metrics
 def force_agreement(t: np.ndarray, measured: np.ndarray, simulated: np.ndarray) -> dict:
     """Damper-force agreement of a record: int |F_meas - F_sim| dt [N s],
@@ -332,6 +369,6 @@ def force_agreement(t: np.ndarray, measured: np.ndarray, simulated: np.ndarray) 
             "nrmse [-]": float(np.sqrt(np.mean(e**2)) / np.sqrt(np.mean(measured**2)))}
 
 
-__all__ = ["SensitivitySettings", "TrainingProblem", "groups_from_config", "check_damper_record", "damper_cases",
+__all__ = ["SensitivitySettings", "TrainingProblem", "groups_from_config", "free_groups", "identifiability", "check_damper_record", "damper_cases",
            "excitation_fundamental", "input_cutoff",
            "sensitivity", "nominal_channels", "fit", "force_agreement", "VALVES", "COMPLIANCE"]
