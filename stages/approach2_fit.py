@@ -18,6 +18,7 @@ from _common import CONF, baseline, config_hash, seed_for, stage, staged_dir, wr
 from dampertwin.calibration import approach2
 from dampertwin.calibration.concurrent import progress_figure
 from dampertwin.calibration.ga import GASettings
+from dampertwin.checkpoint import NpzStore
 from dampertwin.design import yaml_load_file
 from dampertwin.errors import UserError
 from dampertwin.io import write_frame
@@ -53,7 +54,7 @@ def main() -> None:
     settings = GASettings.from_config(p2.ga)
     seed = seed_for("approach2_fit")
     d = baseline()
-    ck = OUT2 / "checkpoints" / "approach2_fit.npz"
+    ck = NpzStore(OUT2 / "checkpoints" / "approach2_fit.npz")  # the stage owns the file; the GAs see a store
     t0 = time.perf_counter()
     res, prob = approach2.fit(d, rec, cal, W, groups, settings, seed, bandwidth=proto.get("sensors", {}).get("force"),
                               checkpoint=ck, scheduler=cfg.profile.scheduler, free=free)
@@ -89,7 +90,7 @@ def main() -> None:
         ax.grid(alpha=0.3)
         fig.savefig(tmp / "training.png", dpi=100)
         plt.close(fig)
-    ck.unlink(missing_ok=True)
+    ck.path.unlink(missing_ok=True)
 
 
 if __name__ == "__main__":

@@ -4,6 +4,8 @@ cheap analytic model (no ODE)."""
 import numpy as np
 import pytest
 
+from dampertwin.checkpoint import NpzStore
+
 from dampertwin.calibration import sensitivity as sens
 from dampertwin.calibration.concurrent import BatchScorer, GAGroup, run_concurrent
 from dampertwin.calibration.ga import GASettings, ParamSpec
@@ -72,11 +74,13 @@ def test_recovers_known_parameters_one_simulation_per_individual():
 def test_resume_after_kill_gives_the_same_result(tmp_path):
     s = GASettings(population=12, reproduction_ratio=80, generations=8, mutation_probability=15)
     ref = run_concurrent(GROUPS, BatchScorer(scorer(), 5), s, seed=9, progress=False)
-    ck = tmp_path / "ck.npz"
+    ck = NpzStore(tmp_path / "ck.npz")
+    with pytest.raises(TypeError, match="NpzStore"):  # the optimiser opens no file itself
+        run_concurrent(GROUPS, BatchScorer(scorer(), 5), s, seed=9, progress=False, checkpoint=ck.path)
     with pytest.raises(KeyboardInterrupt):
         run_concurrent(GROUPS, BatchScorer(scorer({"rows": 0, "calls": 0, "kill_at": 5}), 5), s, seed=9,
                        progress=False, checkpoint=ck)
-    assert ck.is_file()
+    assert ck.path.is_file()
     cnt = {"rows": 0, "calls": 0}
     res = run_concurrent(GROUPS, BatchScorer(scorer(cnt), 5), s, seed=9, progress=False, checkpoint=ck)
     assert cnt["calls"] < 9  # resumed, not restarted

@@ -34,7 +34,7 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from ..checkpoint import as_store
+from ..checkpoint import require_store
 from .ga import INFEASIBLE, NEAR_SPREAD, FitError, GASettings, ParamSpec, bound_hits
 
 
@@ -145,7 +145,7 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
             pop[1:near] = np.clip(part + NEAR_SPREAD * rng.standard_normal((near - 1, sizes[gi])), 0, 1)
             pop[0] = part
     start_gen, rows = 0, []
-    store = as_store(checkpoint)
+    store = require_store(checkpoint)  # no file I/O here: the stage passes a store
     sig = json.dumps({"groups": [[g.name, [s.__dict__ for s in g.specs]] for g in groups], "ga": settings.__dict__,
                       "seed": seed, "x0": x0, "context": context}, sort_keys=True)
     z = store.load() if store else None
