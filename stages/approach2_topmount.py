@@ -15,6 +15,7 @@ from _common import CONF, baseline, config, measured_dir, seed_for, stage, stage
 from dampertwin.calibration.ga import GASettings
 from dampertwin.calibration.identifiability import sweep_points, top_mount_report
 from dampertwin.calibration.module_topmount import calibration, fit_module_top_mount
+from dampertwin.checkpoint import NpzStore
 from dampertwin.calibration.polish import PolishSettings
 from dampertwin.design import yaml_load_file
 from dampertwin.io import read_record
@@ -61,7 +62,7 @@ def main() -> None:
     proto = load_protocol(CONF / "test" / f"{TEST}.yaml")
     meas, _ = read_record(measured_dir() / TEST / "baseline.parquet", TEST, conf=CONF)
     seed = seed_for("approach2_topmount")
-    ck = OUT2 / "checkpoints" / "approach2_topmount.npz"  # kept only while the fit runs
+    ck = NpzStore(OUT2 / "checkpoints" / "approach2_topmount.npz")  # kept only while the fit runs
     res, coef, kept, rec = fit_module_top_mount(
         d, meas, cal, GASettings.from_config(cfg.profile.ga.topmount), seed, checkpoint=ck,
         scheduler=cfg.profile.scheduler, polish_settings=PolishSettings.from_config(cfg.profile.polish),
@@ -78,7 +79,7 @@ def main() -> None:
         write_fit(tmp, res, meta, "N*s", d.hash(), best=best, extra={"determined": determined})
         fitted = d.with_overrides({k: v for k, v in best.items() if not k.startswith("sensor.")})
         figure(tmp / "topmount.png", d, fitted, rec, coef, cal["input_cutoff"], cal["dynamic_run"])
-    ck.unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
+    ck.path.unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
 
 
 if __name__ == "__main__":
