@@ -21,20 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
 
 
-@pytest.fixture(scope="module")
-def short_training():
-    """Damper-level training record: one stroke, two velocities, one
-    current (the shipped protocol's structure, shortened for CI)."""
-    from dampertwin import lab
-
-    proto = dict(load_protocol(CONF / "test" / "training.yaml"))
-    assert proto["configuration"] == "damper"
-    proto.update(strokes=[0.01], velocities=[0.5, 1.0], cycles=2, currents=[1.6], rate=2000.0)
-    sample = lab.load_sample(CONF / "lab" / "lab2" / "sample.yaml")
-    nominal = lab.load_design(CONF / "lab" / "nominal.yaml")
-    rng = np.random.default_rng(1)
-    frames = [lab.record(r, nominal, sample, rng) for r in build_runs(proto, 0)]
-    return pd.concat(frames, ignore_index=True)
+# ``short_training`` (a short synthetic damper-level training record): tests/conftest.py
 
 
 def test_shipped_protocols_for_approach2():

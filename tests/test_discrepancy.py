@@ -42,10 +42,7 @@ def _lab(tmp: Path, name: str, seed: int, only=ONLY, **spec) -> Path:
     return out
 
 
-@pytest.fixture(scope="module")
-def control(tmp_path_factory) -> Path:
-    """The nominal part (no deviations, no hidden effect) on the shipped lab's benches."""
-    return _lab(tmp_path_factory.mktemp("lab"), "control", 11)
+# ``control`` (the nominal part on the shipped lab's benches) and ``control_serial_run``: tests/conftest.py
 
 
 @pytest.fixture(scope="module")
@@ -61,6 +58,33 @@ def leak_lag(tmp_path_factory) -> Path:
     return _lab(tmp_path_factory.mktemp("lab"), "leak_lag", 13,
                 effects={"piston_leakage": True, "active_valve_lag": True},
                 values={_leak_key(): 6e-5, "active_valve_lag.tau": 5e-3})
+
+
+@pytest.fixture(scope="module")
+def control_run(control, tmp_path_factory) -> tuple[Path, dict]:
+    """The workflow on ``control`` (seed 0, records in a 2-process pool, the default on 2 cores):
+    (OUT, verdict). Run once and only read by the tests that need it (the run takes minutes on CI)."""
+    out = tmp_path_factory.mktemp("control_run") / "out"
+    return out, _run(control, out, workers=2)
+
+
+@pytest.fixture(scope="module")
+def compliance_only_run(control, tmp_path_factory) -> tuple[Path, Path, dict]:
+    """The workflow on ``control``'s compliance record alone (seed 0, in this process), written into
+    an earlier output as a DVC stage leaves it (its outs removed, its .gitignore and a stale
+    resolvability.json kept): (parent, OUT, verdict). Shared by the test of records that cannot see
+    an effect and the test that an earlier output is replaced (neither property needs more records)."""
+    tmp = tmp_path_factory.mktemp("compliance_only")
+    only = tmp / "m"
+    shutil.copytree(control / "compliance", only / "compliance")
+    prev = tmp / "prev"
+    prev.mkdir()
+    (prev / ".gitignore").write_text("/plots\n")
+    (prev / "resolvability.json").write_text("[]")
+    doc = entry.main(str(DESIGN), str(only), str(prev), profile="ci", seed=0, progress=False,
+                     tests={"compliance": ["baseline"]}, workers=1)
+    assert json.loads((prev / "verdict.json").read_text()) == doc
+    return tmp, prev, doc
 
 
 def _leak_key() -> str:
@@ -80,47 +104,43 @@ def _run(measured: Path, out: Path, seed: int = 0, workers: int | None = None) -
     return doc
 
 
-def test_control_says_none_and_design_round_trips(control, tmp_path):
-    doc = _run(control, tmp_path / "out")
+def test_control_says_none_and_design_round_trips(control_run):
+    out, doc = control_run
     assert doc["verdict"] == "none", doc
     assert doc["effects"] == [] and doc["design"] == "design.yaml"
-    d = load(tmp_path / "out" / "design.yaml", map_dirs=[ROOT / "conf" / "design"])
+    d = load(out / "design.yaml", map_dirs=[ROOT / "conf" / "design"])
     again = loads(d.dumps(), base_dir=str(ROOT / "conf" / "design"))
     assert again.hash() == d.hash()
     assert not d.effects["piston_leakage"]
     # what these records (compliance + two mono-sine currents, seconds long) could have seen: the
     # active valve's lag and the top mount's play move the mono-sine acceleration far beyond the
     # record gate; oil heating over seconds (ratio ~0) cannot show, whatever the gate
-    rs = {r["effect"]: r for r in json.loads((tmp_path / "out" / "resolvability.json").read_text())}
+    rs = {r["effect"]: r for r in json.loads((out / "resolvability.json").read_text())}
     assert {"piston_leakage", "oil_thermal", "active_valve_lag", "top_mount_backlash"} <= set(rs)
     assert rs["active_valve_lag"]["resolvable"] and rs["top_mount_backlash"]["resolvable"], rs
     assert rs["oil_thermal"]["resolvable"] is False and rs["oil_thermal"]["ratio"] < 0.01, rs
     assert rs["oil_thermal"]["separating_test"] == "thermal"
-    assert "What these records can resolve" in (tmp_path / "out" / "report.md").read_text()
+    assert "What these records can resolve" in (out / "report.md").read_text()
 
 
-def test_records_that_cannot_see_an_effect_at_all(control, tmp_path):
+def test_records_that_cannot_see_an_effect_at_all(compliance_only_run):
     """Only the compliance record (rod fixed: the top mount's play cannot act): `none`, and the
     resolvability check says the backlash has no signature at all there (a zero ratio once crashed
     the decision log)."""
-    only = tmp_path / "m"
-    shutil.copytree(control / "compliance", only / "compliance")
-    doc = entry.main(str(DESIGN), str(only), str(tmp_path / "out"), profile="ci", seed=0, progress=False,
-                     tests={"compliance": ["baseline"]}, workers=1)
+    _, out, doc = compliance_only_run
     assert doc["verdict"] == "none", doc
-    rs = {r["effect"]: r for r in json.loads((tmp_path / "out" / "resolvability.json").read_text())}
+    rs = {r["effect"]: r for r in json.loads((out / "resolvability.json").read_text())}
     assert rs["top_mount_backlash"]["ratio"] == 0 and rs["top_mount_backlash"]["min_factor"] is None, rs
     assert rs["top_mount_backlash"]["resolvable"] is False
-    assert "top_mount_backlash 0.00 (no signature at all on these records" in (tmp_path / "out" / "report.md").read_text()
+    assert "top_mount_backlash 0.00 (no signature at all on these records" in (out / "report.md").read_text()
 
 
-def test_record_workers_give_the_same_numbers(control, tmp_path):
+def test_record_workers_give_the_same_numbers(control_run, control_serial_run):
     """The records simulated in a 2-process pool (the default on 2 cores) and in this process: same bytes."""
-    a = _run(control, tmp_path / "pool", workers=2)
-    b = _run(control, tmp_path / "serial", workers=1)
+    (pool, a), (serial, b) = control_run, control_serial_run
     assert a == b
     for name in ("verdict.json", "resolvability.json", "design.yaml"):
-        assert (tmp_path / "pool" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes(), name
+        assert (pool / name).read_bytes() == (serial / name).read_bytes(), name
 
 
 def test_hidden_leakage_is_named(leak, tmp_path):
@@ -258,15 +278,18 @@ def test_out_folder_and_seed_are_checked_before_any_work(tmp_path, capsys, contr
     assert code == 2 and "is a file" in err
     code, err = _exit(base + [str(tmp_path / "o"), "--seed", "-1"], capsys)
     assert code == 2 and "--seed -1" in err and not (tmp_path / "o").exists()
-    # an earlier output, as a DVC stage leaves it (its outs removed, its .gitignore and an untracked file kept)
-    prev = tmp_path / "prev"
-    prev.mkdir()
-    (prev / ".gitignore").write_text("/plots\n")
-    (prev / "resolvability.json").write_text("[]")
-    doc = _run(control, prev)
+
+
+def test_an_earlier_output_is_replaced(compliance_only_run):
+    """An earlier output, as a DVC stage leaves it (its outs removed, its .gitignore and an untracked
+    file kept), is accepted as OUT and replaced: the run (the compliance record alone; which records
+    does not matter to how OUT is written) keeps the .gitignore, rewrites the stale file and leaves no
+    temporary folder."""
+    parent, prev, doc = compliance_only_run
     assert doc["verdict"] == "none" and (prev / ".gitignore").read_text() == "/plots\n"
     assert json.loads((prev / "resolvability.json").read_text())
-    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".prev")] == []  # no temp folder left
+    assert (prev / "report.md").is_file() and (prev / "design.yaml").is_file()
+    assert [p.name for p in parent.iterdir() if p.name.startswith(".prev")] == []  # no temp folder left
 
 
 def test_a_single_record_names_no_effect(tmp_path):

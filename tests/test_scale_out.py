@@ -22,8 +22,7 @@ import yaml
 from dampertwin.errors import UserError
 from dampertwin.parallel import CLUSTER_KEYS, check_cluster_config, slurm_cluster
 
-from test_approach2 import short_training  # noqa: F401  (the fixture: one copy)
-from test_discrepancy import DESIGN, TESTS, control  # noqa: F401  (the fixture: one copy)
+from test_discrepancy import DESIGN, TESTS  # the fixtures short_training, control, control_serial_run: conftest.py
 
 ROOT = Path(__file__).resolve().parents[1]
 SLURM = ROOT / "conf" / "cluster" / "slurm.yaml"
@@ -40,7 +39,7 @@ def executed(lc) -> int:
     return sum(w.state.executed_count for w in lc.workers.values())
 
 
-def test_approach2_sensitivity_on_a_cluster_gives_the_same_bytes(short_training):  # noqa: F811
+def test_approach2_sensitivity_on_a_cluster_gives_the_same_bytes(short_training):
     from dampertwin.calibration import approach2 as a2
     from dampertwin.design import load, yaml_load_file
 
@@ -59,7 +58,7 @@ def test_approach2_sensitivity_on_a_cluster_gives_the_same_bytes(short_training)
     assert remote.meta == local.meta
 
 
-def test_approach2_fit_on_a_cluster_gives_the_same_fit(short_training):  # noqa: F811
+def test_approach2_fit_on_a_cluster_gives_the_same_fit(short_training):
     from dampertwin.calibration import approach2 as a2
     from dampertwin.calibration.ga import GASettings
     from dampertwin.design import load, yaml_load_file
@@ -107,19 +106,17 @@ def test_approach1_objective_does_not_depend_on_the_batch():
         assert rec.scores(X[lo:lo + k])[0].tobytes() == full[lo:lo + k].tobytes()
 
 
-def test_discrepancy_workflow_on_a_cluster_gives_the_same_bytes(control, tmp_path):  # noqa: F811
+def test_discrepancy_workflow_on_a_cluster_gives_the_same_bytes(control, control_serial_run, tmp_path):
     from dampertwin.discrepancy import entry
 
-    def run(out, **kw):
-        return entry.main(str(DESIGN), str(control), str(out), profile="ci", seed=0, progress=False, tests=TESTS, **kw)
-
     with cluster() as lc:
-        a = run(tmp_path / "cluster", scheduler=lc.scheduler_address)
+        a = entry.main(str(DESIGN), str(control), str(tmp_path / "cluster"), profile="ci", seed=0, progress=False,
+                       tests=TESTS, scheduler=lc.scheduler_address)
         assert executed(lc) >= 3 and not lc.scheduler.tasks  # record tasks ran there, all released
-    b = run(tmp_path / "local", workers=1)
+    local, b = control_serial_run  # the same call with workers=1, run once for the suite
     assert a == b
     for name in ("verdict.json", "resolvability.json", "design.yaml", "report.md"):
-        assert (tmp_path / "cluster" / name).read_bytes() == (tmp_path / "local" / name).read_bytes(), name
+        assert (tmp_path / "cluster" / name).read_bytes() == (local / name).read_bytes(), name
 
 
 def test_fit_command_on_a_cluster_gives_the_same_fit(tmp_path):
