@@ -14,7 +14,6 @@ from dampertwin.calibration.ga import GASettings, ParamSpec
 from dampertwin.design import load, yaml_load_file
 from dampertwin.errors import UserError
 
-from test_approach2 import short_training  # noqa: F401  (fixture)
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
@@ -86,7 +85,7 @@ def test_rule_from_config_is_checked_and_shipped_windows_follow_approach_1():
         assert a2_ == a1, kind
 
 
-def test_fit_fits_exactly_the_determined_set(short_training):  # noqa: F811
+def test_fit_fits_exactly_the_determined_set(short_training):  # the fixture: conftest.py
     design = load(CONF / "design" / "baseline.yaml")
     cal = yaml_load_file(CONF / "calibration" / "approach2.yaml")
     rec = a2.check_damper_record(short_training, "training", ["I1.6"])
