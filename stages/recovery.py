@@ -48,9 +48,9 @@ def _variant(conf: Path, d, case: str | None):
     return load_variant(conf / "variant" / f"{case}.yaml").apply(d) if case else d
 
 
-def _truth_sample(conf: Path):
-    """(sample, lab nominal design) of the lab stage's hidden sample."""
-    path = conf / "lab" / lab.STAGE_SAMPLE
+def _truth_sample(conf: Path, path: Path | None = None):
+    """(sample, lab nominal design) of the lab stage's hidden sample (or of ``path``)."""
+    path = conf / "lab" / lab.STAGE_SAMPLE if path is None else Path(path)
     sample = lab.load_sample(path)
     if not lab.is_truth_sample(sample):
         raise UserError(f"{path}: generator {sample.get('generator')!r}; the recovery compares against the truth "
@@ -242,7 +242,7 @@ def metrics(gas, curves, tm, sample) -> dict:
     return m
 
 
-def run(conf: Path, results: Path, out: Path) -> dict:
+def run(conf: Path, results: Path, out: Path, sample_path: Path | None = None) -> dict:
     """Compute the recovery from ``conf`` and the fitted overlays under
     ``results`` and write it to ``out``; returns the metrics."""
     paths = inputs(conf, results)
@@ -250,7 +250,7 @@ def run(conf: Path, results: Path, out: Path) -> dict:
     base = load(conf / "design" / "baseline.yaml")
     a1 = base.with_overrides(overlays["compliance"])
     a2 = base.with_overrides(overlays["approach2"])
-    sample, lab_nominal = _truth_sample(conf)
+    sample, lab_nominal = _truth_sample(conf, sample_path)
     p, rest = lab.truth_part(lab_nominal, lab_nominal, sample)
     truth_inputs = build(lab_nominal, lab_nominal, sample["truth"])[2]  # the sample's values (not as built)
     gas = gas_and_oil(base, a1, a2, p, rest)
@@ -273,8 +273,20 @@ def run(conf: Path, results: Path, out: Path) -> dict:
     return m
 
 
-def main() -> None:
-    run(CONF, ROOT / "results", ROOT / "results" / "recovery")
+def main(*argv: str) -> None:
+    """``python stages/recovery.py`` (the DVC stage: the lab stage's sample, results/recovery), or, for
+    another lab sample whose records the study was run on (`dvc exp run -S measured=...`),
+    ``python stages/recovery.py --sample conf/lab/sample2.yaml --out results/recovery_sample2``."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="stages/recovery.py")
+    ap.add_argument("--sample", default=None, help="lab-3 sample YAML (default: the lab stage's)")
+    ap.add_argument("--out", default=None, help="output folder (default results/recovery)")
+    a = ap.parse_args(list(argv))
+    sample = Path(a.sample) if a.sample else None
+    if sample is not None and not sample.is_file():
+        raise UserError(f"--sample {sample}: file not found; expected a lab-3 sample YAML (conf/lab/*.yaml)")
+    run(CONF, ROOT / "results", Path(a.out) if a.out else ROOT / "results" / "recovery", sample)
 
 
 if __name__ == "__main__":

@@ -211,3 +211,15 @@ def test_stage_reads_exactly_its_dvc_deps_and_writes_its_outs(tmp_path, base):
     assert not unread, unread
     final = {re.sub(r"/\.([^/]+)\.tmp\d+$", r"/\1", w) for w in writes}  # atomic writes: .NAME.tmpPID -> NAME
     assert final == set(outs)
+
+
+def test_another_sample_is_compared_with_its_own_truth(tmp_path, base):
+    """--sample: the recovery of a study run on another lab sample (conf/lab/sample2.yaml,
+    oil.K0 6.5e8) is measured against that sample's truth, not the stage's sample (9e8)."""
+    import recovery
+
+    res = fake_results(tmp_path, base)
+    m = recovery.run(CONF, res, tmp_path / "out2", CONF / "lab" / "sample2.yaml")
+    assert m["oil_modulus_P_ref_error_pct"]["nominal"] == pytest.approx(100 * (7.7e8 - 6.5e8) / 6.5e8)
+    with pytest.raises(recovery.UserError, match="sample_missing.yaml: file not found"):
+        recovery.main("--sample", str(tmp_path / "sample_missing.yaml"), "--out", str(tmp_path / "o"))
