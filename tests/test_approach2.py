@@ -13,6 +13,7 @@ from dampertwin import kpi
 from dampertwin.calibration import approach2 as a2
 from dampertwin.calibration import sensitivity as sens
 from dampertwin.calibration.ga import GASettings
+from dampertwin.checkpoint import NpzStore
 from dampertwin.design import load, yaml_load_file
 from dampertwin.errors import UserError
 from dampertwin.protocols import build_runs, load_protocol
@@ -52,7 +53,7 @@ def test_sensitivity_and_concurrent_fit_on_a_lab_record(short_training, tmp_path
     W = sens.result_weights(res, prob.time, sens.WeightSettings.from_config(cal["weights"]))
     s = GASettings(population=4, reproduction_ratio=75, generations=1, mutation_probability=10, max_wall_s=120)
     fit, prob2 = a2.fit(design, rec, cal, W, res.groups, s, seed=5, bandwidth=1000.0, progress=False,
-                        checkpoint=tmp_path / "ck.npz")
+                        checkpoint=NpzStore(tmp_path / "ck.npz"))
     assert fit.best_objective <= fit.start_objective  # x0 (nominal) is a member: never worse than the drawings
     assert set(fit.best_group_objectives) == {*a2.VALVES, a2.COMPLIANCE}
     assert {"oil.chi", "oil.K_oil", "piston_rebound.a"} <= set(fit.best)
