@@ -223,7 +223,12 @@ def _run_design(args) -> int:
     except DesignError as e:  # the documented exit 1: every problem the check found
         print(str(e), file=sys.stderr)
         return 1
-    print(f"{args.path}: OK ({len(design.parameters)} parameters, hash {design.hash()})")
+    from .design.architecture import DESCRIPTION, is_placeholder
+
+    held = sum(is_placeholder(p.source, design.architecture) for p in design.parameters.values())
+    arch = f"architecture {design.architecture}: {DESCRIPTION[design.architecture]}"
+    print(f"{args.path}: OK ({arch}; {len(design.parameters) - held} parameters"
+          + (f", {held} of parts it lacks filled with placeholders" if held else "") + f", hash {design.hash()})")
     return 0
 
 
