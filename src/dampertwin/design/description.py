@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from ..errors import UserError
+from .adjusters import adjusters_doc, at_setting, current_setting, parse_adjusters
 from .schema import (
     BY_NUMBER,
     CONSTANT_TYPES,
@@ -43,7 +44,8 @@ from .schema import (
 
 PARAM_FIELDS = ("no", "name", "symbol", "group", "description", "type", "value", "unit", "source")
 CONST_FIELDS = ("name", "symbol", "description", "type", "value", "unit", "source")
-TOP_KEYS = ("design", "description", "parameters", "constants", "effects", "effect_parameters")
+TOP_KEYS = ("design", "description", "parameters", "constants", "effects", "effect_parameters",
+            "adjusters", "setting")
 EFFECT_PARAM_FIELDS = ("name", "effect", "symbol", "description", "type", "value", "unit", "source", "typical")
 EFFECT_PARAM_TYPES = ("C", "F")
 
@@ -257,10 +259,12 @@ class PQMap:
     __hash__ = None  # type: ignore[assignment]
 
 
-def _rebuild_design(name, description, parameters, constants, effects, pq_map, path, map_dirs, effect_params):
+def _rebuild_design(name, description, parameters, constants, effects, pq_map, path, map_dirs, effect_params,
+                    adjusters=None):
     """``Design.__reduce__``'s constructor."""
     return Design(name, description, MappingProxyType(parameters), MappingProxyType(constants),
-                  MappingProxyType(effects), pq_map, path, map_dirs, MappingProxyType(effect_params))
+                  MappingProxyType(effects), pq_map, path, map_dirs, MappingProxyType(effect_params),
+                  adjusters=MappingProxyType(adjusters or {}))
 
 
 @dataclass(frozen=True, eq=False)
@@ -277,12 +281,13 @@ class Design:
     path: Path | None = field(default=None, compare=False)
     map_dirs: tuple = field(default=(), compare=False)  # extra folders the P/Q map may live in
     effect_params: Mapping[str, EffectParameter] = field(default_factory=lambda: MappingProxyType({}))
+    adjusters: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))  # name -> adjusters.Adjuster
     _memo: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         # read-only views of private copies: a Design never changes, so what is derived from it
         # (hash, the packed parameter vector) is computed once and kept in _memo
-        for name in ("parameters", "constants", "effects", "effect_params"):
+        for name in ("parameters", "constants", "effects", "effect_params", "adjusters"):
             object.__setattr__(self, name, MappingProxyType(dict(getattr(self, name))))
 
     def memo(self, key, compute):
@@ -295,7 +300,8 @@ class Design:
         """Picklable (process pools run designs in other processes): the
         read-only mappings travel as dicts and come back read-only."""
         return (_rebuild_design, (self.name, self.description, dict(self.parameters), dict(self.constants),
-                                  dict(self.effects), self.pq_map, self.path, self.map_dirs, dict(self.effect_params)))
+                                  dict(self.effects), self.pq_map, self.path, self.map_dirs, dict(self.effect_params),
+                                  dict(self.adjusters)))
 
     def effect_parameters(self, effect: str | None = None) -> list[EffectParameter]:
         """The effect parameters (all, or those of one effect), in file order."""
@@ -352,6 +358,16 @@ class Design:
 
     __hash__ = None  # type: ignore[assignment]
 
+    # ---- adjusters (design/adjusters.py) -----------------------------------
+    @property
+    def setting(self) -> dict[str, int]:
+        """The click of each adjuster (0 = fully closed); {} without ``adjusters:``."""
+        return current_setting(self)
+
+    def at_setting(self, setting: Mapping[str, int], source: str | os.PathLike | None = None) -> "Design":
+        """A new design with its adjusters at ``setting`` (e.g. ``{"rebound": 3}``), through ``with_overrides``."""
+        return at_setting(self, setting, source)
+
     # ---- variants ---------------------------------------------------------
     def with_overrides(self, overrides: Mapping[Any, Any], source: str | os.PathLike | None = None) -> "Design":
         """A new validated design with some values replaced.
@@ -366,6 +382,7 @@ class Design:
         if not isinstance(overrides, Mapping):
             raise DesignError([f"{where}: overrides must be a mapping of parameter -> value, got {type(overrides).__name__}"])
         doc = self._doc(self.path.parent if self.path else None)
+        doc.pop("setting", None)  # the adjusters' setting follows the overridden values (design/adjusters.py)
         errors: list[str] = []
         pindex = {p["no"]: p for p in doc["parameters"]}
         cindex = {c["name"]: c for c in doc["constants"]}
@@ -437,6 +454,7 @@ class Design:
         }
         if self.effect_params:
             doc["effect_parameters"] = [_effect_param_doc(e) for e in self.effect_params.values()]
+        doc.update(adjusters_doc(self))
         return doc
 
     def dumps(self, rel_to: Path | None = None) -> str:
@@ -589,6 +607,7 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
     effects = _parse_effects(doc.get("effects"), where, errors)
     effect_params = _parse_effect_parameters(doc.get("effect_parameters", []), effects, where, errors)
     _check_physics(params, constants, where, errors)
+    adjusters = parse_adjusters(doc.get("adjusters"), doc.get("setting"), params, where, errors)
     if errors:
         raise DesignError(errors)
     return Design(
@@ -601,6 +620,7 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
         path=path,
         map_dirs=tuple(map_dirs),
         effect_params=MappingProxyType(effect_params),
+        adjusters=MappingProxyType(adjusters),
     )
 
 
