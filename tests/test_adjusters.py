@@ -16,7 +16,7 @@ import yaml
 from dampertwin import Excitation, simulate
 from dampertwin.cli import main
 from dampertwin.design import DesignError, load, loads
-from dampertwin.design.adjusters import design_for_record, format_adjusters
+from dampertwin.design.adjusters import design_for_record, format_adjusters, without_adjusters
 from dampertwin.design.description import _Dumper
 from dampertwin.importer import MappingError, import_measurement
 from dampertwin.io import read_meta
@@ -189,6 +189,11 @@ def test_an_override_between_clicks_is_refused_and_one_on_a_click_moves_the_sett
     with pytest.raises(DesignError, match=r"adjusters\.rebound: no\. 38 .* is none of the clicks"):
         adjustable.with_overrides({"piston_rebound.A_bleed": 1.1e-6}, source="variant.yaml")
     assert adjustable.with_overrides({"piston_rebound.A_bleed": REBOUND[1]}).setting["rebound"] == 1
+    # without the table the value is free again (to calibrate one setting), and the design is the baseline
+    free = without_adjusters(adjustable.at_setting({"rebound": 6}))
+    assert free.adjusters == {} and free["piston_rebound.A_bleed"] == REBOUND[6]
+    assert free.with_overrides({"piston_rebound.A_bleed": 1.1e-6})["piston_rebound.A_bleed"] == 1.1e-6
+    assert without_adjusters(adjustable) == load(BASELINE)
 
 
 def test_without_adjusters_the_design_is_unchanged(base, adjustable):
@@ -266,3 +271,16 @@ def test_a_larger_rebound_bleed_click_lowers_the_low_speed_rebound_force(adjusta
     f3, f6 = _rebound_force(adjustable.at_setting({"rebound": 3})), _rebound_force(adjustable.at_setting({"rebound": 6}))
     assert f3 > 0 and math.isfinite(f6)
     assert f6 < 0.8 * f3, (f3, f6)
+
+
+def test_a_simulated_record_names_the_setting_it_was_simulated_at(adjustable, tmp_path):
+    from dampertwin.simulate_test import simulate_test
+
+    d = adjustable.at_setting({"rebound": 5, "compression": 2})
+    path = d.dump(adjustable.path.parent / "r5_c2.yaml")  # beside the P/Q map
+    pq, _ = simulate_test(path, "compliance", tmp_path / "sim", case="v0.4_I1.6", conf=ROOT / "conf")
+    meta = read_meta(pq)
+    assert meta["setting"] == {"rebound": 5, "compression": 2}
+    assert design_for_record(adjustable, meta, where=str(pq)) == load(path)
+    assert "setting" not in read_meta(simulate_test(BASELINE, "compliance", tmp_path / "base", case="v0.4_I1.6",
+                                                    conf=ROOT / "conf")[0])

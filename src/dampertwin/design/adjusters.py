@@ -176,7 +176,8 @@ def _check_setting(adjusters: dict[str, Adjuster], declared: set, setting: Any, 
                               f"is the setting: change both, or use Design.at_setting)")
         elif at is None:
             errors.append(f"{label}: no. {adj.no} ({adj.key}) = {p.value!r} {adj.unit} is none of the clicks "
-                          f"{list(adj.clicks)!r}; expected the value of one click (the design's setting)")
+                          f"{list(adj.clicks)!r}; expected the value of one click (the design's setting; "
+                          f"adjusters.without_adjusters frees the value, e.g. to calibrate one setting)")
 
 
 def current_setting(design) -> dict[str, int]:
@@ -228,6 +229,21 @@ def at_setting(design, setting: Mapping[str, int], source: str | None = None):
     return design.with_overrides(overrides, source=source)
 
 
+def without_adjusters(design):
+    """``design`` without its ``adjusters:`` table (the parameter values as they are): a
+    design whose moved parameters may leave the clicks, e.g. to calibrate one setting."""
+    from pathlib import Path
+
+    from .description import _from_doc
+
+    if not design.adjusters:
+        return design
+    doc = design._doc(design.path.parent if design.path else None)
+    doc.pop("adjusters"), doc.pop("setting")
+    return _from_doc(doc, design.path, base_dir=design.path.parent if design.path else Path.cwd(),
+                     known_map=design.pq_map, map_dirs=design.map_dirs)
+
+
 def record_setting(meta: Mapping, where: str = "record") -> dict[str, int] | None:
     """The ``setting`` a record's metadata names (None when it names none); DesignError
     naming ``where`` when it is not a mapping of adjuster -> click number."""
@@ -266,4 +282,4 @@ def format_adjusters(design) -> list[str]:
 
 
 __all__ = ["ADJUSTER_NAMES", "ADJUSTABLE", "Adjuster", "parse_adjusters", "adjusters_doc", "current_setting",
-           "at_setting", "setting_overrides", "record_setting", "design_for_record", "format_adjusters"]
+           "at_setting", "setting_overrides", "without_adjusters", "record_setting", "design_for_record", "format_adjusters"]
