@@ -9,6 +9,7 @@ import traceback
 from pathlib import Path
 
 from .design import TYPES, DesignError, load
+from .design.adjusters import format_adjusters
 from .design.schema import TYPE_MEANING
 from . import __version__
 from .errors import USER_ERROR_EXIT, UserError, debug_enabled, one_line, user_error_types
@@ -48,6 +49,7 @@ def format_table(design, ptype: str | None = None) -> str:
         off = [k for k, v in design.effects.items() if not v]
         lines.append(f"effects on: {', '.join(on) or '-'}; off: {', '.join(off) or '-'}")
         lines.append(f"constants: {len(design.constants)} (see the YAML 'constants:' section)")
+        lines += format_adjusters(design)
     return "\n".join(lines)
 
 
@@ -227,8 +229,10 @@ def _run_design(args) -> int:
 
     held = sum(is_placeholder(p.source, design.architecture) for p in design.parameters.values())
     arch = f"architecture {design.architecture}: {DESCRIPTION[design.architecture]}"
+    adj = "".join(f", adjuster {n}: {a.key} {len(a.clicks)} clicks at {design.setting[n]}"
+                  for n, a in design.adjusters.items())
     print(f"{args.path}: OK ({arch}; {len(design.parameters) - held} parameters"
-          + (f", {held} of parts it lacks filled with placeholders" if held else "") + f", hash {design.hash()})")
+          + (f", {held} of parts it lacks filled with placeholders" if held else "") + f", hash {design.hash()}{adj})")
     return 0
 
 

@@ -111,6 +111,16 @@ def check_gas_volume(arch: str, values: dict[str, float], constants: dict[str, f
                       f"rod's volume)")
 
 
+def check_adjusters(arch: str, adjusters: dict, where: str, errors: list[str]) -> None:
+    """An adjuster must move a valve the architecture has (a mono tube has no base valves)."""
+    if arch != "mono_tube":
+        return
+    for name, a in adjusters.items():
+        if a.valve.startswith("base_"):
+            errors.append(f"{where}: adjusters.{name}.valve: {a.valve!r}, but a mono_tube damper has no base valves; "
+                          f"expected piston_rebound or piston_intake (the piston's compression valve)")
+
+
 def placeholder_values(arch: str, values: dict[int, object], constants: dict[str, float]) -> tuple[dict, dict]:
     """Values of the left-out numbers / constants of ``arch``: ({no: value}, {name: value}).
     ``values`` / ``constants`` are the ones the design gives."""

@@ -27,6 +27,7 @@ import yaml
 
 from ..errors import UserError
 from . import architecture as _arch
+from .adjusters import adjusters_doc, at_setting, current_setting, parse_adjusters
 from .schema import (
     BY_NUMBER,
     CONSTANT_TYPES,
@@ -44,7 +45,8 @@ from .schema import (
 
 PARAM_FIELDS = ("no", "name", "symbol", "group", "description", "type", "value", "unit", "source")
 CONST_FIELDS = ("name", "symbol", "description", "type", "value", "unit", "source")
-TOP_KEYS = ("design", "description", "architecture", "parameters", "constants", "effects", "effect_parameters")
+TOP_KEYS = ("design", "description", "architecture", "parameters", "constants", "effects", "effect_parameters",
+            "adjusters", "setting")
 EFFECT_PARAM_FIELDS = ("name", "effect", "symbol", "description", "type", "value", "unit", "source", "typical")
 EFFECT_PARAM_TYPES = ("C", "F")
 
@@ -259,10 +261,11 @@ class PQMap:
 
 
 def _rebuild_design(name, description, parameters, constants, effects, pq_map, path, map_dirs, effect_params,
-                    architecture=_arch.DEFAULT):
+                    architecture=_arch.DEFAULT, adjusters=None):
     """``Design.__reduce__``'s constructor."""
     return Design(name, description, MappingProxyType(parameters), MappingProxyType(constants),
-                  MappingProxyType(effects), pq_map, path, map_dirs, MappingProxyType(effect_params), architecture)
+                  MappingProxyType(effects), pq_map, path, map_dirs, MappingProxyType(effect_params), architecture,
+                  adjusters=MappingProxyType(adjusters or {}))
 
 
 @dataclass(frozen=True, eq=False)
@@ -280,12 +283,13 @@ class Design:
     map_dirs: tuple = field(default=(), compare=False)  # extra folders the P/Q map may live in
     effect_params: Mapping[str, EffectParameter] = field(default_factory=lambda: MappingProxyType({}))
     architecture: str = _arch.DEFAULT  # design key ``architecture:`` (design/architecture.py)
+    adjusters: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))  # name -> adjusters.Adjuster
     _memo: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         # read-only views of private copies: a Design never changes, so what is derived from it
         # (hash, the packed parameter vector) is computed once and kept in _memo
-        for name in ("parameters", "constants", "effects", "effect_params"):
+        for name in ("parameters", "constants", "effects", "effect_params", "adjusters"):
             object.__setattr__(self, name, MappingProxyType(dict(getattr(self, name))))
 
     def memo(self, key, compute):
@@ -299,7 +303,7 @@ class Design:
         read-only mappings travel as dicts and come back read-only."""
         return (_rebuild_design, (self.name, self.description, dict(self.parameters), dict(self.constants),
                                   dict(self.effects), self.pq_map, self.path, self.map_dirs, dict(self.effect_params),
-                                  self.architecture))
+                                  self.architecture, dict(self.adjusters)))
 
     def effect_parameters(self, effect: str | None = None) -> list[EffectParameter]:
         """The effect parameters (all, or those of one effect), in file order."""
@@ -356,6 +360,16 @@ class Design:
 
     __hash__ = None  # type: ignore[assignment]
 
+    # ---- adjusters (design/adjusters.py) -----------------------------------
+    @property
+    def setting(self) -> dict[str, int]:
+        """The click of each adjuster (0 = fully closed); {} without ``adjusters:``."""
+        return current_setting(self)
+
+    def at_setting(self, setting: Mapping[str, int], source: str | os.PathLike | None = None) -> "Design":
+        """A new design with its adjusters at ``setting`` (e.g. ``{"rebound": 3}``), through ``with_overrides``."""
+        return at_setting(self, setting, source)
+
     # ---- variants ---------------------------------------------------------
     def with_overrides(self, overrides: Mapping[Any, Any], source: str | os.PathLike | None = None) -> "Design":
         """A new validated design with some values replaced.
@@ -370,6 +384,7 @@ class Design:
         if not isinstance(overrides, Mapping):
             raise DesignError([f"{where}: overrides must be a mapping of parameter -> value, got {type(overrides).__name__}"])
         doc = self._doc(self.path.parent if self.path else None)
+        doc.pop("setting", None)  # the adjusters' setting follows the overridden values (design/adjusters.py)
         errors: list[str] = []
         pindex = {p["no"]: p for p in doc["parameters"]}
         cindex = {c["name"]: c for c in doc["constants"]}
@@ -444,6 +459,7 @@ class Design:
         }
         if self.effect_params:
             doc["effect_parameters"] = [_effect_param_doc(e) for e in self.effect_params.values()]
+        doc.update(adjusters_doc(self))
         return doc
 
     def dumps(self, rel_to: Path | None = None) -> str:
@@ -602,6 +618,8 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
     _check_physics(params, constants, where, errors)
     _arch.check_gas_volume(arch, {p.key: p.value for p in params.values()}, {c.name: c.value for c in constants.values()},
                            where, errors)
+    adjusters = parse_adjusters(doc.get("adjusters"), doc.get("setting"), params, where, errors)
+    _arch.check_adjusters(arch, adjusters, where, errors)
     if errors:
         raise DesignError(errors)
     return Design(
@@ -615,6 +633,7 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
         map_dirs=tuple(map_dirs),
         effect_params=MappingProxyType(effect_params),
         architecture=arch,
+        adjusters=MappingProxyType(adjusters),
     )
 
 
