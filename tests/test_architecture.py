@@ -195,3 +195,17 @@ def test_the_sparsity_cache_tells_the_architectures_apart(designs):
     after = _sine(designs["mono_tube"], cycles=1)
     for k, v in fresh.channels.items():
         assert np.array_equal(v, after.channels[k]), k
+
+
+def test_an_adjuster_on_a_valve_the_architecture_lacks_is_refused():
+    doc = _doc("mono_tube")
+    doc["adjusters"] = {"compression": {"valve": "base_compression", "parameter": "F_preload", "unit": "N",
+                                        "clicks": [300.0, 200.0, 100.0], "source": "probe"}}
+    with pytest.raises(DesignError, match=r"adjusters.compression.valve: 'base_compression', but a mono_tube damper "
+                                          r"has no base valves"):
+        _loads(doc)
+    doc["adjusters"]["compression"]["valve"] = "piston_intake"  # the piston's compression valve
+    pre = next(p["value"] for p in doc["parameters"] if p["no"] == 63)
+    doc["adjusters"]["compression"]["clicks"] = [pre * 1.5, pre, pre * 0.5]
+    d = _loads(doc)
+    assert d.at_setting({"compression": 2})["piston_intake.F_preload"] == pre * 0.5
