@@ -30,9 +30,9 @@ from .fluid import BETA_T, JIT, P_FLOOR_EPS, P_REF, P_V, density, modulus, ramp,
 from .fluid import throttle as throttle_bp
 
 PARAMS = ("A_R", "A_B", "L_R0", "L_C0", "V_B", "KAPPA_PT", "KAPPA_TT", "P_W", "C_TH", "HA", "T_AMB", "THERMAL",
-          "D_PT", "A_BP", "L_BP", "N_BP", "BAND_H", "BAND_L", "M_ROD", "BAND_ECC")
+          "D_PT", "A_BP", "L_BP", "N_BP", "BAND_H", "BAND_L", "M_ROD", "BAND_ECC", "ARCH")
 (A_R, A_B, L_R0, L_C0, V_B, KAPPA_PT, KAPPA_TT, P_W, C_TH, HA, T_AMB, THERMAL, D_PT, A_BP, L_BP, N_BP, BAND_H, BAND_L,
- M_ROD, BAND_ECC) = range(len(PARAMS))
+ M_ROD, BAND_ECC, ARCH) = range(len(PARAMS))  # ARCH: the architecture's code (passive.CODES)
 STATES = (("P_r", "Pa", 1e5, "rebound chamber pressure"), ("P_c", "Pa", 1e5, "compression chamber pressure"),
           ("P_b", "Pa", 1e5, "third-tube pressure"), ("g_r", "m^3", 1e-7, "entrained gas, rebound"),
           ("g_c", "m^3", 1e-7, "entrained gas, compression"), ("g_b", "m^3", 1e-7, "entrained gas, third tube"),

@@ -4,8 +4,15 @@ driven), ``module`` (rod on the top mount, the mount on the crosshead) and
 ``topmount`` (the mount alone on the crosshead); ``damper+`` / ``module+``
 the same with the hidden effects' states appended (layout.EXT_BLOCKS: the
 steel node, the entrained gas, the top-mount sleeve), run only when one of
-those effects is on. They compile at first use, not at import
-(``dampertwin.jit``).
+those effects is on; ``damper_fp`` / ``module_fp`` a mono tube's (its
+floating piston's states after the extension). They compile at first use,
+not at import (``dampertwin.jit``).
+
+The architecture (``chambers.ARCH``, passive.py): the triple tube of the
+thesis; a twin tube without the third tube's chamber, bypass and active
+valve (their states rest); a mono tube also without the base valves, its
+compression chamber on the floating piston (floating.py), the gas behind
+it.
 
 Sign conventions of the project (DESIGN.md 4): the stroke s grows in
 rebound (the rebound chamber shrinks), the rod force is positive in
@@ -21,10 +28,12 @@ from ..solver import rhs_signature
 from . import aeration as ae
 from . import chambers as ch
 from . import fixture as fx
+from . import floating as fl
 from . import freeplay as fp
 from . import gas as gs
 from . import intake as ik
 from . import mount as mt
+from . import passive as pv
 from . import shims as sh
 from . import solenoid as sv
 from . import thermal as th
@@ -32,7 +41,7 @@ from .fluid import BETA_T, JIT, P_ATM, P_REF, RHO0, density, viscosity
 from .layout import (BENCH_BLOCK, BENCH_KIND, BENCH_P, BENCH_V, CURRENT, EX_DT, EX_T0, O_A_ROD, O_DISS, O_DP, O_F_ACT,
                      O_F_MU, O_F_ROD, O_F_TM, O_I, O_LIFT, O_MAG, O_MASS, O_P_B, O_P_C, O_P_K, O_P_R, O_P_RES, O_Q_A,
                      O_Q_BP, O_Q_BV, O_Q_IN, O_Q_P, O_S, O_T_GAS, O_T_OIL, O_U, O_V, O_X_BC, O_X_BI, O_X_M, O_X_P,
-                     O_X_PI, O_X_PR, O_X_TM, PO, SO, TO, E_GE, E_TW, E_VS, E_XS, EXT_AT)
+                     O_X_PI, O_X_PR, O_X_TM, O_V_GAS, O_X_FP, PO, SO, TO, E_GE, E_TW, E_VS, E_XS, EXT_AT, FP_AT)
 from .seal import seal
 
 SIG = rhs_signature()
@@ -40,8 +49,9 @@ OIL, CH, GAS = PO["oil"], PO["chambers"], PO["gas"]
 PR, BC, PI, BI, AV = (PO["piston_rebound"], PO["base_compression"], PO["piston_intake"], PO["base_intake"],
                       PO["active_valve"])
 SEAL, MOUNT, FIX, RUN = PO["seal"], PO["mount"], PO["fixture"], PO["run"]
-FP, TH, AE = PO["free_play"], PO["thermal"], PO["aeration"]
+FP, TH, AE, FL = PO["free_play"], PO["thermal"], PO["aeration"], PO["floating"]
 X_DAMPER, X_MODULE = EXT_AT["damper+"], EXT_AT["module+"]
+F_DAMPER, F_MODULE = FP_AT["damper_fp"], FP_AT["module_fp"]
 S_CH, S_GAS, S_PR, S_BC, S_PI, S_BI, S_AV, S_SEAL, S_FIX, S_ROD, S_MOUNT = (
     SO["chambers"], SO["gas"], SO["piston_rebound"], SO["base_compression"], SO["piston_intake"],
     SO["base_intake"], SO["active_valve"], SO["seal"], SO["fixture"], SO["rod"], SO["mount"])
@@ -130,9 +140,10 @@ def volumes(y, p, s, sd):
 
 
 @njit(**JIT)
-def _damper(t, y, p, ex, dy, out, module, ext):
+def _damper(t, y, p, ex, dy, out, module, ext, fpo):
     """The damper (module False) or the module; ``ext`` >= 0: the start of
-    the hidden effects' states (layout.EXT_BLOCKS), -1: none (their effects off)."""
+    the hidden effects' states (layout.EXT_BLOCKS), -1: none (their effects off);
+    ``fpo`` >= 0: the start of a mono tube's floating-piston states, -1: none."""
     for k in range(out.shape[0]):
         out[k] = 0.0
     if ext >= 0:  # the extension's states whose effect is off (or absent, as the play in the damper test) rest
@@ -148,10 +159,17 @@ def _damper(t, y, p, ex, dy, out, module, ext):
     T = y[S_CH + ch.T_OIL]
     P_r, P_c, P_b = y[S_CH + ch.PR], y[S_CH + ch.PC], y[S_CH + ch.PB]
     mu = viscosity(T, p, OIL) * p[OIL + RHO0]
+    triple = p[CH + ch.ARCH] < 0.5
+    mono = p[CH + ch.ARCH] > 1.5
     # reserve
     rho_ref = density(p[OIL + P_REF], T, p, OIL)
     V_oil = y[S_GAS + gs.M_RES] / rho_ref
-    V_r, dV_r, V_c, dV_c, V_b, dV_b, V_k, dV_k, V_sw, dV_sw, W_r, W_c, W_t = volumes(y, p, s, sd)
+    if triple:
+        V_r, dV_r, V_c, dV_c, V_b, dV_b, V_k, dV_k, V_sw, dV_sw, W_r, W_c, W_t = volumes(y, p, s, sd)
+    else:  # the pressure tube in the reserve at its rest pressure (twin) or in the air (mono)
+        P_out = p[OIL + P_ATM] if mono else p[CH + ch.P_W]
+        V_r, dV_r, V_c, dV_c, V_sw, dV_sw, W_r, W_c = pv.volumes(y, p, s, sd, mono, fpo, P_out)
+        V_b, dV_b, V_k, dV_k, W_t = 0.0, 0.0, 0.0, 0.0, 0.0
     P_res, V_g = gs.reserve_pressure(y, S_GAS, p, GAS, V_oil, V_sw)
     P_k = y[S_AV + sv.PK]
     rho_r, rho_c, rho_b = density(P_r, T, p, OIL), density(P_c, T, p, OIL), density(P_b, T, p, OIL)
@@ -159,11 +177,23 @@ def _damper(t, y, p, ex, dy, out, module, ext):
     # valves and passages
     Q0, Qb0, _, L0 = sh.shim_valve(y, S_PR, p, PR, P_r, P_c, _mean(rho_r, rho_c), mu, dy)
     Q1, _, L1 = ik.intake_valve(y, S_PI, p, PI, P_c, P_r, _mean(rho_r, rho_c), mu, dy)
-    Q2, Qb2, _, L2 = sh.shim_valve(y, S_BC, p, BC, P_c, P_res, _mean(rho_c, rho_s), mu, dy)
-    Q3, _, L3 = ik.intake_valve(y, S_BI, p, BI, P_res, P_c, _mean(rho_c, rho_s), mu, dy)
+    if mono:  # no base valves
+        Q2, Qb2, L2, Q3, L3 = 0.0, 0.0, 0.0, 0.0, 0.0
+        pv.rest(dy, S_BC, S_BC + len(sh.STATES))
+        pv.rest(dy, S_BI, S_BI + len(ik.STATES))
+    else:
+        Q2, Qb2, _, L2 = sh.shim_valve(y, S_BC, p, BC, P_c, P_res, _mean(rho_c, rho_s), mu, dy)
+        Q3, _, L3 = ik.intake_valve(y, S_BI, p, BI, P_res, P_c, _mean(rho_c, rho_s), mu, dy)
     Q_lk, F_band, L_lk = ch.band_leakage(P_r - P_c, sd, mu, p, CH)
-    Q_bp = ch.bypass(P_r - P_b, mu, _mean(rho_r, rho_b), p, CH)
-    Q_a, Q_f, Q_pl, P_mag, L_av = sv.active_valve(y, S_AV, p, AV, p[RUN + CURRENT], P_b, P_res, rho_b, mu, dy)
+    if triple:
+        Q_bp = ch.bypass(P_r - P_b, mu, _mean(rho_r, rho_b), p, CH)
+        Q_a, Q_f, Q_pl, P_mag, L_av = sv.active_valve(y, S_AV, p, AV, p[RUN + CURRENT], P_b, P_res, rho_b, mu, dy)
+    else:  # no third tube, no active valve: their states rest
+        Q_bp, Q_a, Q_f, Q_pl, P_mag, L_av = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        pv.rest(dy, S_AV, S_AV + len(sv.STATES))
+    F_fp, L_fp = 0.0, 0.0
+    if mono:  # the floating piston between the compression oil and the gas (P_res: the gas chamber's)
+        F_fp, L_fp = fl.floating_piston(y, fpo, p, FL, P_c, P_res, p[CH + ch.A_B], dy)
     F_seal, L_seal = seal(y, S_SEAL, p, SEAL, sd, P_r - p[OIL + P_ATM], dy)
     F_d = (P_r - p[OIL + P_ATM]) * p[CH + ch.A_R] - (P_c - p[OIL + P_ATM]) * p[CH + ch.A_B] + F_seal + F_band
     # top: fixture (damper) or rod, mount and fixture (module)
@@ -199,6 +229,8 @@ def _damper(t, y, p, ex, dy, out, module, ext):
     m_pl = _mean(rho_k, rho_s) * Q_pl
     # oil temperature (the gas heat enters with the gas temperature difference of the state)
     loss = (L0 + L1 + L2 + L3 + L_lk + (P_r - P_b) * Q_bp + L_av + L_seal + L_top)
+    if mono:
+        loss += L_fp
     q_gas = 0.0
     if p[GAS + gs.HEAT] > 0.5:
         q_gas = p[GAS + gs.H] * (y[S_GAS + gs.T_G] - T)
@@ -225,17 +257,25 @@ def _damper(t, y, p, ex, dy, out, module, ext):
     g_ct = g_c + g_e  # the compression chamber's free gas: dissolved-air bubbles and entrained gas
     dg_r = gs.free_gas_rate(g_r, P_r, ch.liquid_volume(P_r, V_r, g_r, p, OIL), P_ref, p, GAS)
     dg_c = gs.free_gas_rate(g_c, P_c, ch.liquid_volume(P_c, V_c, g_ct, p, OIL), P_ref, p, GAS)
-    dg_b = gs.free_gas_rate(g_b, P_b, ch.liquid_volume(P_b, V_b, g_b, p, OIL), P_ref, p, GAS)
+    dg_b = 0.0
+    if triple:
+        dg_b = gs.free_gas_rate(g_b, P_b, ch.liquid_volume(P_b, V_b, g_b, p, OIL), P_ref, p, GAS)
     dy[S_CH + ch.GR], dy[S_CH + ch.GC], dy[S_CH + ch.GB] = dg_r, dg_c, dg_b
     a_r, b_r = ch.balance(P_r, T, dT, V_r, dV_r, g_r, dg_r, -m_p - m_bp, p, OIL)
     a_c, b_c = ch.balance(P_c, T, dT, V_c, dV_c, g_ct, dg_c + dg_e, m_p - m_bv, p, OIL)
-    a_b, b_b = ch.balance(P_b, T, dT, V_b, dV_b, g_b, dg_b, m_bp - m_a - m_f, p, OIL)
-    dP_r, dP_c, dP_b = ch.walled_rates(a_r, b_r, a_c, b_c, a_b, b_b, W_r, W_c, W_t)
+    if triple:
+        a_b, b_b = ch.balance(P_b, T, dT, V_b, dV_b, g_b, dg_b, m_bp - m_a - m_f, p, OIL)
+        dP_r, dP_c, dP_b = ch.walled_rates(a_r, b_r, a_c, b_c, a_b, b_b, W_r, W_c, W_t)
+        dy[S_AV + sv.PK] = ch.pressure_rate(P_k, T, dT, V_k, dV_k, 0.0, 0.0, m_f - m_pl, p, OIL)
+    else:  # the pressure tube's wall against a constant outside pressure: (a + W) dP = b
+        dP_r, dP_c, dP_b = b_r / (a_r + W_r), b_c / (a_c + W_c), 0.0
     dy[S_CH + ch.PR], dy[S_CH + ch.PC], dy[S_CH + ch.PB] = dP_r, dP_c, dP_b
-    dy[S_AV + sv.PK] = ch.pressure_rate(P_k, T, dT, V_k, dV_k, 0.0, 0.0, m_f - m_pl, p, OIL)
-    # reserve: oil in, parts and the third tube's wall displacing, oil expanding
+    # reserve: oil in, parts and the third tube's wall displacing, oil expanding (mono: the floating piston
+    # displacing the gas, no oil beside it)
     dV_oil_mass = (m_bv + m_a + m_pl) / rho_ref
     dV_g = -(dV_oil_mass + p[OIL + BETA_T] * V_oil * dT + dV_sw + W_t * dP_b)
+    if not triple and not mono:  # the twin tube's pressure tube stretching into the reserve
+        dV_g -= W_r * dP_r + W_c * dP_c
     gs.reserve(y, S_GAS, p, GAS, P_res, V_g, dV_g, V_oil, T, dy)
     if m_e != 0.0:  # the gas leaving the reserve takes its enthalpy (open system, as gas.reserve's dissolution)
         dy[S_GAS + gs.M_G] -= m_e
@@ -255,6 +295,11 @@ def _damper(t, y, p, ex, dy, out, module, ext):
     else:
         out[O_F_ROD] = F_lc
     out[O_P_R], out[O_P_C], out[O_P_B], out[O_P_RES], out[O_P_K] = P_r, P_c, P_b, P_res, P_k
+    out[O_V_GAS] = V_g
+    if not triple:  # no third tube, no active valve's control chamber
+        out[O_P_B], out[O_P_K] = 0.0, 0.0
+    if mono:
+        out[O_X_FP] = y[fpo + fl.X]
     out[O_X_PR], out[O_X_PI] = y[S_PR + sh.X], y[S_PI + ik.X]
     out[O_X_BC], out[O_X_BI] = y[S_BC + sh.X], y[S_BI + ik.X]
     out[O_X_M], out[O_X_P] = y[S_AV + sv.XM], y[S_AV + sv.XP]
@@ -265,9 +310,13 @@ def _damper(t, y, p, ex, dy, out, module, ext):
     out[O_I] = y[S_AV + sv.I]
     out[O_T_OIL] = T
     out[O_T_GAS] = y[S_GAS + gs.T_G]
-    out[O_MASS] = (ch.oil_mass(P_r, T, V_r, g_r, p, OIL) + ch.oil_mass(P_c, T, V_c, g_ct, p, OIL)
-                   + ch.oil_mass(P_b, T, V_b, g_b, p, OIL) + ch.oil_mass(P_k, T, V_k, 0.0, p, OIL)
-                   + y[S_GAS + gs.M_RES])
+    if triple:
+        out[O_MASS] = (ch.oil_mass(P_r, T, V_r, g_r, p, OIL) + ch.oil_mass(P_c, T, V_c, g_ct, p, OIL)
+                       + ch.oil_mass(P_b, T, V_b, g_b, p, OIL) + ch.oil_mass(P_k, T, V_k, 0.0, p, OIL)
+                       + y[S_GAS + gs.M_RES])
+    else:
+        out[O_MASS] = (ch.oil_mass(P_r, T, V_r, g_r, p, OIL) + ch.oil_mass(P_c, T, V_c, g_ct, p, OIL)
+                       + y[S_GAS + gs.M_RES])
     out[O_DISS] = loss + q_gas
     out[O_MAG] = P_mag
 
@@ -275,25 +324,37 @@ def _damper(t, y, p, ex, dy, out, module, ext):
 @lazy_njit(SIG, **JIT)
 def rhs_damper(t, y, p, ex, aux, dy, out):
     """Damper test: tube displacement prescribed, rod on the crosshead."""
-    _damper(t, y, p, ex, dy, out, False, -1)
+    _damper(t, y, p, ex, dy, out, False, -1, -1)
 
 
 @lazy_njit(SIG, **JIT)
 def rhs_damper_ext(t, y, p, ex, aux, dy, out):
     """Damper test with the hidden effects' states (layout.EXT_BLOCKS)."""
-    _damper(t, y, p, ex, dy, out, False, X_DAMPER)
+    _damper(t, y, p, ex, dy, out, False, X_DAMPER, -1)
 
 
 @lazy_njit(SIG, **JIT)
 def rhs_module(t, y, p, ex, aux, dy, out):
     """Module test: the rod on the top mount, the mount on the crosshead."""
-    _damper(t, y, p, ex, dy, out, True, -1)
+    _damper(t, y, p, ex, dy, out, True, -1, -1)
 
 
 @lazy_njit(SIG, **JIT)
 def rhs_module_ext(t, y, p, ex, aux, dy, out):
     """Module test with the hidden effects' states (layout.EXT_BLOCKS)."""
-    _damper(t, y, p, ex, dy, out, True, X_MODULE)
+    _damper(t, y, p, ex, dy, out, True, X_MODULE, -1)
+
+
+@lazy_njit(SIG, **JIT)
+def rhs_damper_fp(t, y, p, ex, aux, dy, out):
+    """Damper test of a mono tube (its floating piston after the extension's states)."""
+    _damper(t, y, p, ex, dy, out, False, X_DAMPER, F_DAMPER)
+
+
+@lazy_njit(SIG, **JIT)
+def rhs_module_fp(t, y, p, ex, aux, dy, out):
+    """Module test of a mono tube (its floating piston after the extension's states)."""
+    _damper(t, y, p, ex, dy, out, True, X_MODULE, F_MODULE)
 
 
 @lazy_njit(SIG, **JIT)
@@ -366,4 +427,5 @@ def rhs_active_valve(t, y, p, ex, aux, dy, out):
 
 
 RHS = {"valve": rhs_valve, "damper": rhs_damper, "module": rhs_module, "topmount": rhs_topmount,
-       "active_valve": rhs_active_valve, "damper+": rhs_damper_ext, "module+": rhs_module_ext}
+       "active_valve": rhs_active_valve, "damper+": rhs_damper_ext, "module+": rhs_module_ext,
+       "damper_fp": rhs_damper_fp, "module_fp": rhs_module_fp}

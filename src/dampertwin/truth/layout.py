@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import aeration, chambers, fixture, fluid, freeplay, gas, intake, mount, seal, shims, solenoid, thermal
+from . import aeration, chambers, fixture, floating, fluid, freeplay, gas, intake, mount, seal, shims, solenoid, thermal
 
 RUN_PARAMS = ("CURRENT", "EX_T0", "EX_DT", "BENCH_V", "BENCH_P", "BENCH_BLOCK", "BENCH_KIND")
 CURRENT, EX_T0, EX_DT, BENCH_V, BENCH_P, BENCH_BLOCK, BENCH_KIND = range(len(RUN_PARAMS))
@@ -16,7 +16,7 @@ PARAM_BLOCKS = (("oil", fluid.PARAMS), ("chambers", chambers.PARAMS), ("gas", ga
                 ("piston_intake", intake.PARAMS), ("base_intake", intake.PARAMS), ("active_valve", solenoid.PARAMS),
                 ("seal", seal.PARAMS), ("mount", mount.PARAMS), ("fixture", fixture.PARAMS),
                 ("free_play", freeplay.PARAMS), ("thermal", thermal.PARAMS), ("aeration", aeration.PARAMS),
-                ("run", RUN_PARAMS))
+                ("floating", floating.PARAMS), ("run", RUN_PARAMS))
 
 
 def _offsets(blocks):
@@ -44,16 +44,23 @@ ACTIVE_BLOCKS = (("active_valve", solenoid.STATES),)
 # (configurations "damper+" / "module+", run only when one of them is on: the default runs keep their state
 # vector, hence the solver's error norm, bit for bit); offsets inside the block: ext.E_*
 EXT_BLOCKS = (("thermal", thermal.STATES), ("aeration", aeration.STATES), ("free_play", freeplay.STATES))
+# the mono tube's floating piston (floating.py) after the extension: configurations "damper_fp" / "module_fp",
+# run for every mono tube (the extension's states rest unless their effects are on)
+FP_BLOCKS = (("floating", floating.STATES),)
 CONFIG_BLOCKS = {"valve": VALVE_BLOCKS, "damper": DAMPER_BLOCKS, "module": MODULE_BLOCKS,
                  "topmount": TOPMOUNT_BLOCKS, "active_valve": ACTIVE_BLOCKS,
-                 "damper+": DAMPER_BLOCKS + EXT_BLOCKS, "module+": MODULE_BLOCKS + EXT_BLOCKS}
+                 "damper+": DAMPER_BLOCKS + EXT_BLOCKS, "module+": MODULE_BLOCKS + EXT_BLOCKS,
+                 "damper_fp": DAMPER_BLOCKS + EXT_BLOCKS + FP_BLOCKS, "module_fp": MODULE_BLOCKS + EXT_BLOCKS + FP_BLOCKS}
 SO, N_MODULE = _offsets(MODULE_BLOCKS)   # module offsets; the damper's are its first blocks
 TO, N_TOPMOUNT = _offsets(TOPMOUNT_BLOCKS)
 N_DAMPER = _offsets(DAMPER_BLOCKS)[1]
 EO, _ = _offsets(EXT_BLOCKS)  # offsets inside the extension block
 E_TW, E_GE, E_XS = EO["thermal"] + thermal.TW, EO["aeration"] + aeration.GE, EO["free_play"] + freeplay.XS
 E_VS = EO["free_play"] + freeplay.VS
-EXT_AT = {"damper+": N_DAMPER, "module+": N_MODULE}  # where the extension block starts
+EXT_AT = {"damper+": N_DAMPER, "module+": N_MODULE, "damper_fp": N_DAMPER,
+          "module_fp": N_MODULE}  # where the extension block starts
+N_EXT = _offsets(EXT_BLOCKS)[1]
+FP_AT = {"damper_fp": N_DAMPER + N_EXT, "module_fp": N_MODULE + N_EXT}  # where the floating piston's block starts
 
 
 def states(configuration: str) -> tuple:
@@ -75,8 +82,9 @@ OUTPUTS = ("displacement [m]", "velocity [m/s]", "stroke [m]", "rod force [N]", 
            "lift main stage [m]", "lift pilot [m]", "flow piston [m^3/s]", "flow base [m^3/s]",
            "flow bypass [m^3/s]", "flow active valve [m^3/s]", "coil current [A]", "oil temperature [K]",
            "gas temperature [K]", "oil mass [kg]", "dissipated power [W]", "magnetic power [W]",
-           "flow [m^3/s]", "dp [Pa]", "lift [m]", "top mount deflection [m]")
+           "flow [m^3/s]", "dp [Pa]", "lift [m]", "top mount deflection [m]", "gas volume [m^3]",
+           "floating piston position [m]")
 (O_U, O_V, O_S, O_F_ROD, O_F_TM, O_F_ACT, O_A_ROD, O_F_MU, O_P_R, O_P_C, O_P_B, O_P_RES, O_P_K, O_X_PR, O_X_PI,
  O_X_BC, O_X_BI, O_X_M, O_X_P, O_Q_P, O_Q_BV, O_Q_BP, O_Q_A, O_I, O_T_OIL, O_T_GAS, O_MASS, O_DISS, O_MAG, O_Q_IN,
- O_DP, O_LIFT, O_X_TM) = range(len(OUTPUTS))
+ O_DP, O_LIFT, O_X_TM, O_V_GAS, O_X_FP) = range(len(OUTPUTS))
 N_OUT = len(OUTPUTS)

@@ -8,6 +8,14 @@ drawn per sample).
 Keys: ``<block>.<NAME>`` of layout.PARAM_NAMES, and the shim-stack
 drawings ``<valve>.<a|b|r1|t1|n1|a2|t2|n2|gap|preload|w_s>`` from which
 plate.py computes the stack's stiffness and areas.
+
+The architecture (the design's ``architecture:``; passive.CODES) is the
+truth parameter ``chambers.ARCH``. The parts an architecture lacks are not
+built: their parameters are NaN (a twin tube: the solenoid valve and the
+third tube's volume, bypass and wall; a mono tube also the base valves; the
+twin tube keeps P_W, the reserve's rest pressure outside its pressure tube), so
+a right-hand side that read one would fail loudly; the mono tube's gas has
+no reserve oil beside it (the floating piston separates them).
 """
 
 from __future__ import annotations
@@ -18,6 +26,7 @@ import zlib
 import numpy as np
 
 from . import fluid, gas
+from .passive import CODES, MONO, TRIPLE
 from .layout import N_PARAMS, PARAM_NAMES, PO
 from .plate import shape_ratio, stack
 
@@ -113,6 +122,12 @@ TRUTH_NOMINAL = {
     # fixture: 12 kg crosshead on the load cell, 650 Hz, 4 % damping
     "fixture.M_F": 12.0, "fixture.K_F": 12.0 * (2 * math.pi * 650.0) ** 2,
     "fixture.C_F": 2 * 0.04 * math.sqrt(12.0 * 12.0 * (2 * math.pi * 650.0) ** 2), "fixture.ON": 1.0,
+    # mono tube's floating piston (floating.py): an aluminium disc 46 mm x 18 mm with its O-ring, 2700 kg/m^3 x
+    # pi/4 0.046^2 x 0.018 m = 0.081 kg (engineering estimate: Dixon, The Shock Absorber Handbook, 2nd ed. 2007,
+    # sec. 1.4 draws such a piston); O-ring (2.62 mm cord, ~15 % squeeze) friction F_C L_p ~ 0.14 N/mm x pi 46 mm
+    # = 20 N (Parker O-Ring Handbook ORD 5700, 2007, sec. 5.6, fig. 5-13; engineering estimate), sticking over
+    # ~20 um (K = F0 / 20 um = 1e6 N/m), oil film 20 N s/m (engineering estimate, as the rod seal's C_V / 2.5)
+    "floating.M": 0.081, "floating.F0": 20.0, "floating.K": 1.0e6, "floating.C_V": 20.0,
     # hidden effects (off unless a sample names them; these values when it says `true`):
     # a worn band's piston off the bore's axis by half its clearance
     "chambers.BAND_ECC": 0.5,
@@ -126,6 +141,10 @@ TRUTH_NOMINAL = {
     "aeration.P_E": 2.5e5, "aeration.PHI_E": 0.05, "aeration.TAU_E": 1.0, "aeration.ON": 0.0,
 }
 VALUE_KEYS = frozenset(PARAM_NAMES) | frozenset(TRUTH_NOMINAL)
+# the parameters of the parts an architecture lacks (not built: NaN), by block or "block.NAME"
+ABSENT = {"twin_tube": ("active_valve", "chambers.V_B", "chambers.A_BP", "chambers.KAPPA_TT"),
+          "mono_tube": ("active_valve", "chambers.V_B", "chambers.A_BP", "chambers.KAPPA_TT", "chambers.P_W",
+                        "base_compression", "base_intake")}
 
 
 class TruthParameterError(ValueError):
@@ -137,6 +156,7 @@ def nominal(design) -> dict:
     truth's own drawings (TRUTH_NOMINAL)."""
     d = design
     v = dict(TRUTH_NOMINAL)
+    v["architecture"] = getattr(d, "architecture", "triple_tube_semi_active")
     v["alpha_free"] = float(d["oil.chi"])
     for s, pre in zip(SHIMS, ("piston_rebound.F_preload", "base_compression.F_preload")):
         v[f"{s}.preload"] = float(d[pre])
@@ -227,6 +247,10 @@ def derive(v: dict, effects: dict | None = None, as_built_seed: int | None = Non
     effects, eff_values = effect_settings(effects)
     v = {**v, **eff_values}
     q = {k: x for k, x in v.items() if k in PARAM_NAMES}
+    arch = v.get("architecture", "triple_tube_semi_active")
+    if arch not in CODES:
+        raise TruthParameterError(f"architecture: {arch!r}; expected one of {', '.join(CODES)}")
+    q["chambers.ARCH"] = float(CODES[arch])
     if not effects["band_eccentricity"]:
         q["chambers.BAND_ECC"] = 0.0
     q["oil.WALTHER_A"], q["oil.WALTHER_B"] = fluid.walther_coefficients(v["nu"], v["T"], v["viscosity_slope"])
@@ -239,11 +263,19 @@ def derive(v: dict, effects: dict | None = None, as_built_seed: int | None = Non
                               if wall else 0.0)
     q["chambers.P_W"] = v["P0"]  # the reservoir's rest pressure, which loads the third tube's wall from outside
     q["chambers.T_AMB"] = v["T"]
-    q["gas.V_TOT"] = v["V_gas0"] + v["reserve_oil"]
+    if CODES[arch] == MONO:  # the gas behind the floating piston: no reserve oil
+        q["gas.V_TOT"] = v["V_gas0"]
+    else:
+        q["gas.V_TOT"] = v["V_gas0"] + v["reserve_oil"]
     q["gas.H"] = v["P0"] * v["V_gas0"] / (v["gas.R_S"] * v["T"]) * v["gas.C_V"] / v["tau_thermal"]
     q["gas.K_H"] = v["gas.S_H"] * _gas_density_ref(v) / v["oil.P_REF"]  # [kg/(m^3 Pa)]
     gas_inputs = {k[4:]: v[k] for k in v if k.startswith("gas.")}
-    q["gas.ALPHA_TOT"] = gas.equilibrium_free_gas(v["alpha_free"], v["P0"], gas_inputs, v["oil.P_REF"])
+    # the oil's gas content: saturated at the gas fill it touches (triple, twin tube); a mono tube's oil never
+    # meets its gas (the floating piston between): it holds the air of its filling at atmospheric pressure
+    # (Henry's law), so at the precharge its free gas dissolves down to the nuclei (Dixon 2007, sec. 1.4: the
+    # mono tube's separated gas against aeration)
+    P_sat = v["oil.P_ATM"] if CODES[arch] == MONO else v["P0"]
+    q["gas.ALPHA_TOT"] = gas.equilibrium_free_gas(v["alpha_free"], P_sat, gas_inputs, v["oil.P_REF"])
     for s in SHIMS:
         face = stack(v[f"{s}.a"], v[f"{s}.b"], v[f"{s}.t1"], int(v[f"{s}.n1"]), E_STEEL, NU_STEEL, v[f"{s}.r1"])
         back = stack(v[f"{s}.a2"], v[f"{s}.b"], v[f"{s}.t2"], int(v[f"{s}.n2"]), E_STEEL, NU_STEEL, v[f"{s}.r1"])
@@ -268,6 +300,10 @@ def derive(v: dict, effects: dict | None = None, as_built_seed: int | None = Non
         rng = np.random.default_rng(as_built_seed)
         for b, n in DEVIATING:
             q[f"{b}.{n}"] *= 1.0 + as_built * rng.uniform(-1.0, 1.0)
+    if CODES[arch] != TRIPLE:  # the parts the architecture lacks are not built
+        for k in q:
+            if k in ABSENT[arch] or k.split(".")[0] in ABSENT[arch]:
+                q[k] = math.nan
     for i, k in enumerate(PARAM_NAMES):
         if not k.startswith("run."):
             p[i] = q[k]

@@ -57,6 +57,8 @@ def variant_values(base, case) -> dict:
         v["mount.K_E3"] = ref["mount.K_E3"] * r3
         for k in ("K_1", "K_2", "K_3"):
             v[f"mount.{k}"] = ref[f"mount.{k}"] * tc["k0"] / tb["k0"]
+    if base.pq_map is None or case.pq_map is None:  # a passive architecture: no active valve's datasheet
+        return v
     fb, fc = _map_features(base.pq_map), _map_features(case.pq_map)
     if fb != fc:
         v["active_valve.A_B"] = ref["active_valve.A_B"] * fc[0] / fb[0]

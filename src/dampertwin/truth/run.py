@@ -14,6 +14,7 @@ from . import chambers as ch
 from . import aeration as ae
 from . import fixture as fx
 from . import fluid
+from . import passive as pv
 from . import freeplay as fpl
 from . import gas as gs
 from . import mount as mt
@@ -68,11 +69,12 @@ def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0):
     A_r, A_b = p[co + ch.A_R], p[co + ch.A_B]
     vols = (A_r * (p[co + ch.L_R0] - s0), A_b * (p[co + ch.L_C0] + s0), p[co + ch.V_B])
     kap = (p[co + ch.KAPPA_PT], p[co + ch.KAPPA_PT], p[co + ch.KAPPA_TT])
+    triple = architecture(p) == pv.TRIPLE
     for k, (V0, kk) in enumerate(zip(vols, kap)):
         e = p[go + gs.ALPHA_N] + ramp(p[go + gs.ALPHA_TOT] - p[go + gs.S_H] * P0 / P_ref, gs.ALPHA_EPS)
         V = V0 * (1 + kk * (P0 - p[oo + fluid.P_ATM]))
         y[SO["chambers"] + k] = P0
-        y[SO["chambers"] + 3 + k] = e * V / (1 + e * P_ref / P0)
+        y[SO["chambers"] + 3 + k] = e * V / (1 + e * P_ref / P0) if triple or k < 2 else 0.0  # no third tube
     y[SO["chambers"] + ch.T_OIL] = oil_T
     rho_ref = float(density(P_ref, oil_T, p, oo))
     V_oil = p[go + gs.V_TOT] - V_gas0
@@ -82,8 +84,9 @@ def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0):
     y[SO["gas"] + gs.C] = p[go + gs.K_H] * P0 * V_oil
     av, ao = SO["active_valve"], PO["active_valve"]
     i = p[PO["run"] + CURRENT]
-    y[av + sv.I] = i
-    y[av + sv.E] = p[ao + sv.R] * i / p[ao + sv.KI]
+    if triple:  # a passive damper has no coil: its states rest at 0
+        y[av + sv.I] = i
+        y[av + sv.E] = p[ao + sv.R] * i / p[ao + sv.KI]
     y[av + sv.PK] = P0
     F0 = -(P0 - p[oo + fluid.P_ATM]) * (A_b - A_r)
     fo, mo = PO["fixture"], PO["mount"]
@@ -98,6 +101,11 @@ def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0):
     return y
 
 
+def architecture(p) -> int:
+    """The architecture's code of the truth ``p`` (passive.CODES)."""
+    return int(round(p[PO["chambers"] + ch.ARCH]))
+
+
 def extended(p, configuration: str) -> bool:
     """A damper / module run with a hidden effect that has states of its own
     (two_node_thermal, air_entrainment; top_mount_free_play in the module):
@@ -107,11 +115,13 @@ def extended(p, configuration: str) -> bool:
         on("thermal", th.ON) or on("aeration", ae.ON) or (configuration == "module" and on("free_play", fpl.ON)))
 
 
-def _extend(y, p, configuration, oil_T, P0):
-    """The rest state of the extended configuration: the steel at the oil's
-    temperature, no entrained gas, the top-mount sleeve where the rod was and
-    the rod against the play's side the gas force presses it to."""
-    cfg = configuration + "+"
+def _extend(y, p, configuration, oil_T, P0, cfg=None):
+    """The rest state of the extended configuration ``cfg`` (default
+    configuration + "+"): the steel at the oil's temperature, no entrained
+    gas, the top-mount sleeve where the rod was and the rod against the
+    play's side the gas force presses it to; a mono tube's floating piston
+    at rest at its origin (its friction element relaxed)."""
+    cfg = cfg or configuration + "+"
     z = np.zeros(len(state_names(cfg)))
     z[: len(y)] = y
     e = EXT_AT[cfg]
@@ -135,7 +145,9 @@ def simulate(p: np.ndarray, excitation: Excitation, configuration: str, *, curre
     damper / module / topmount; ``rest`` gives P0 [Pa], V_gas0 [m^3] (the
     gas fill) and T [K]; ``oil_T`` the oil temperature at the start
     (default rest["T"]); ``start_current`` the coil current at the start
-    (default: the command, the driver's steady state)."""
+    (default: the command, the driver's steady state). A passive truth
+    (twin / mono tube) has no coil: ``current`` does not act on it; a mono
+    tube runs on configuration "damper_fp" / "module_fp"."""
     p = np.array(p, float)
     run = PO["run"]
     p[run + CURRENT] = current
@@ -162,11 +174,16 @@ def simulate(p: np.ndarray, excitation: Excitation, configuration: str, *, curre
     else:
         p[PO["chambers"] + ch.T_AMB] = oil_T
         y0 = _rest_damper(p, configuration, float(excitation.value[0]), oil_T, rest["P0"], rest["V_gas0"])
-        if start_current is not None:
+        if start_current is not None and architecture(p) == pv.TRIPLE:
             y0[SO["active_valve"] + sv.I] = start_current
             y0[SO["active_valve"] + sv.E] = 0.0
     cfg = configuration
-    if extended(p, configuration):
+    if configuration in ("damper", "module") and architecture(p) == pv.MONO:  # the floating piston's states
+        if start_current:
+            raise ValueError("start_current: a mono_tube damper has no coil; expected None or 0")
+        cfg = configuration + "_fp"
+        y0 = _extend(y0, p, configuration, oil_T, rest["P0"], cfg)
+    elif extended(p, configuration):
         y0 = _extend(y0, p, configuration, oil_T, rest["P0"])
         cfg = configuration + "+"
     rhs = RHS[cfg]
