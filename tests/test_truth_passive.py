@@ -141,3 +141,46 @@ def test_mono_tube_has_no_base_valves():
     assert r.ok
     assert not np.any(r["flow base [m^3/s]"]) and not np.any(r["lift base_compression [m]"])
     assert np.abs(r["floating piston position [m]"]).max() > 1e-4
+
+
+# --- the lab's passive samples ----------------------------------------------------------------------------
+
+SAMPLES = {a: ROOT / "conf" / "lab" / f"{a}_sample.yaml" for a in DESIGNS}
+
+
+@pytest.mark.parametrize("arch", DESIGNS)
+def test_passive_samples_plan_only_what_a_passive_damper_can_run(arch):
+    from dampertwin import lab
+
+    s = lab.load_sample(SAMPLES[arch])
+    nominal = load(lab._nominal_path(ROOT / "conf", s))
+    assert nominal.architecture == arch
+    lab.check_sample(s, nominal)
+    items = lab.plan(ROOT / "conf", architecture=arch)
+    assert {t for t, _ in items} == {"flowbench", "compliance", "curving"}
+    assert ("flowbench", "base_intake") in items if arch == "twin_tube" else ("flowbench", "base_intake") not in items
+    with pytest.raises(lab.LabError, match="monosine"):
+        lab.measure_case(ROOT / "conf", s, nominal, "monosine", "baseline_1.6", 0)
+
+
+def test_mono_sample_records_are_synthetic_at_zero_current(tmp_path):
+    from dampertwin.io import read_meta
+    from dampertwin.lab import run_lab
+    from dampertwin.lab_passive import measure_excitation
+
+    (path,) = run_lab(SAMPLES["mono_tube"], tmp_path, seed=1, only=[("compliance", "baseline")], progress=False,
+                      conf=ROOT / "conf", workers=1)
+    meta = read_meta(path)
+    assert meta["synthetic"] is True and meta["architecture"] == "mono_tube" and "SYNTHETIC" in meta["note"]
+    import pandas as pd
+
+    df = pd.read_parquet(path)
+    assert set(df["run"]) == {"v0.4_I0", "v0.8_I0", "v1.2_I0", "v1.6_I0", "v2_I0"}
+    assert not df["current [A]"].any()
+    ex = Excitation.sine(0.01, 2.0, 0.6, ramp=0.25)
+    a, ma = measure_excitation(SAMPLES["mono_tube"], ex, name="dyno_2Hz", rate=1000.0, seed=4, current=1.2)
+    b, _ = measure_excitation(SAMPLES["mono_tube"], ex, name="dyno_2Hz", rate=1000.0, seed=4)
+    assert ma["synthetic"] is True and ma["architecture"] == "mono_tube"
+    pd.testing.assert_frame_equal(a, b)  # reproducible; no coil: the current does not act
+    assert {"displacement [m]", "force [N]"} <= set(a.columns)
+    assert a["force [N]"].min() < -200.0  # the gas pushes the rod out (~ -300 N at rest)

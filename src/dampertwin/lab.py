@@ -31,6 +31,13 @@ Only this module, the ``dampertwin lab`` command and the tests read
 ``conf/lab/``; calibration never does. The shipped samples were built from
 ``conf/lab/nominal.yaml``, a frozen copy of the baseline drawings: editing
 ``conf/design/baseline.yaml`` changes the model, not the parts on the shelf.
+
+A lab-3 sample of a passive damper (its nominal design's ``architecture:``
+twin_tube or mono_tube, e.g. ``conf/lab/twin_tube_sample.yaml``) runs the
+tests a passive damper can run (lab_passive.PASSIVE_TESTS: the damper-level
+sine tests at current 0, the flow bench of the valves it has);
+lab_passive.measure_excitation records the truth for any displacement
+excitation (a dyno run).
 """
 
 from __future__ import annotations
@@ -54,6 +61,7 @@ from .design import load as load_design
 from .errors import UserError
 from .excitation import Excitation
 from .io import write_frame
+from .lab_passive import DEFAULT_ARCHITECTURE, PASSIVE_VALVES, passive_runs
 from .protocols import Run, build_runs, flow_bench, load_all
 from .sensors import FILTERS, quantise, transducer
 from .simulation import simulate
@@ -82,7 +90,8 @@ TRUTH_ATOL = 3e-7
 REST_S = 20.0            # [s] pause between two runs of a test sequence (temperature drift clock)
 # recorded on the baseline when declared; module_topmount: the module-level top-mount test (thesis 7.2, fig. 7.2)
 APPROACH2_TESTS = ("training", "verification", "monosine16", "module_topmount")
-EXTRA_TESTS = ("thermal", "friction")  # recorded on the baseline when conf/test declares them (issue 11)
+EXTRA_TESTS = ("thermal", "friction")
+  # recorded on the baseline when conf/test declares them (issue 11)
 TEMPERATURE = "oil temperature [K]"
 # the thermocouple on the outer tube when the sample's benches do not describe one: first order with a
 # 1.3 s time constant (the protocols document 1 s), 0.1 K converter step, 0.03 K noise (type-K thermocouple
@@ -505,11 +514,16 @@ def _truth_result():
     return TruthResult
 
 
-def plan(conf: Path, protocols: dict | None = None) -> list[tuple[str, str]]:
+def plan(conf: Path, protocols: dict | None = None,
+         architecture: str = DEFAULT_ARCHITECTURE) -> list[tuple[str, str]]:
     """(test, case) of every file the lab writes: the standard tests of
     approach 1 and, when ``conf/test`` declares them, the approach-2 tests
     the warm-up test ``thermal`` and the friction test ``friction`` (all their
-    runs in one file, case ``baseline``)."""
+    runs in one file, case ``baseline``). A passive ``architecture``: the
+    flow bench of its valves, the compliance and curving tests."""
+    if architecture != DEFAULT_ARCHITECTURE:
+        return [("flowbench", v) for v in PASSIVE_VALVES[architecture]] + [("compliance", "baseline"),
+                                                                           ("curving", "baseline")]
     variants = load_variants(conf / "variant")
     protocols = load_all(conf / "test") if protocols is None else protocols
     items = [("flowbench", v) for v in VALVE_DESIGNS] + [("compliance", "baseline")]
@@ -537,6 +551,10 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
     metadata (without writing)."""
     protocols = load_all(conf / "test") if protocols is None else protocols
     variants = {v.case: v for v in load_variants(conf / "variant")} if variants is None else variants
+    arch = getattr(nominal, "architecture", DEFAULT_ARCHITECTURE)
+    if arch != DEFAULT_ARCHITECTURE and (protocol, case) not in plan(conf, protocols, arch):
+        raise LabError(f"{sample.get('_path', '<sample>')}: test {protocol}/{case} is not one a {arch} damper can "
+                       f"run; expected one of {', '.join('/'.join(i) for i in plan(conf, protocols, arch))}")
     s = _seed(seed, sample, protocol, case)
     rng = np.random.default_rng(s)
     pc = protocols[protocol]
@@ -560,6 +578,9 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
         runs = [r for r in runs if math.isclose(r.current, v.current)]
         if not runs:
             raise LabError(f"protocol {protocol} has no run at {v.current} A for case {case}")
+    if arch != DEFAULT_ARCHITECTURE and protocol != "flowbench":
+        runs = passive_runs(runs)
+        extra = {**extra, "architecture": arch}
     b = sample["benches"]
     tc = {**TEMPERATURE_DEFAULTS, **b.get("temperature", {})}
     temps = _sequence_temperatures(runs, tc, rng) if protocol != "topmount" else [0.0] * len(runs)
@@ -622,7 +643,7 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
     check_sample(sample_doc, nominal)
     protocols = load_all(conf / "test")
     check_corners(sample_doc, protocols)
-    items = plan(conf, protocols) if only is None else list(only)
+    items = plan(conf, protocols, getattr(nominal, "architecture", DEFAULT_ARCHITECTURE)) if only is None else list(only)
     if tests is not None:
         known = sorted({t for t, _ in items})
         unknown = [t for t in tests if t not in known]
