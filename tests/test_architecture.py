@@ -209,3 +209,24 @@ def test_an_adjuster_on_a_valve_the_architecture_lacks_is_refused():
     doc["adjusters"]["compression"]["clicks"] = [pre * 1.5, pre, pre * 0.5]
     d = _loads(doc)
     assert d.at_setting({"compression": 2})["piston_intake.F_preload"] == pre * 0.5
+
+
+def test_simulate_runs_only_what_the_architecture_has(designs, tmp_path):
+    """`dampertwin simulate` on a mono tube: no flow-bench run of its absent base valves; a passive damper runs
+    each input once (the current is not read) and its record says so."""
+    import pandas as pd
+
+    from dampertwin import cli
+    from dampertwin.io import read_meta
+
+    assert cli.main(["simulate", str(DESIGNS / "mono_tube.yaml"), "--test", "flowbench", "--out", str(tmp_path)]) == 0
+    df = pd.read_parquet(tmp_path / "flowbench.parquet")
+    assert sorted(df["run"].unique()) == ["piston_intake", "piston_rebound"]
+    assert read_meta(tmp_path / "flowbench.parquet")["current_read"] is False
+    from dampertwin.protocols import build_runs, load_protocol
+    from dampertwin.simulate_test import runs_for_design
+
+    runs = build_runs(load_protocol(ROOT / "conf" / "test" / "curving.yaml"))
+    kept = runs_for_design(designs["twin_tube"], runs, "curving")
+    assert len(kept) == len({r.excitation.array().tobytes() for r in runs}) < len(runs)
+    assert runs_for_design(designs["baseline"], runs, "curving") == runs
