@@ -259,3 +259,41 @@ def test_mono_tube_gas_heating_moves_the_compression_chamber_with_the_gas_law(de
     law = -d["oil.Gamma"] * P / Vg * dVg + P * dT / T
     assert dy[L.S.P_c] == pytest.approx(law, rel=1e-9, abs=1e-6)
     assert abs(dy[L.S.P_c]) > 1.0  # the cooling gas does move the chamber [Pa/s]
+
+
+def test_the_discrepancy_candidates_of_a_passive_damper_leave_out_the_active_valve(designs):
+    from dampertwin.design.architecture import ACTIVE_VALVE_EFFECTS
+    from dampertwin.discrepancy.entry import load_config
+    from dampertwin.discrepancy.workflow import catalogue
+
+    cfg = load_config(ROOT / "conf")
+    base = {c.name for c in catalogue(designs["baseline"], cfg)}
+    twin = {c.name for c in catalogue(designs["twin_tube"], cfg)}
+    assert set(ACTIVE_VALVE_EFFECTS) & base and not set(ACTIVE_VALVE_EFFECTS) & twin
+    assert "oil_thermal" in twin and "oil_thermal" in {c.name for c in catalogue(designs["mono_tube"], cfg)}
+
+
+@pytest.mark.slow
+def test_the_discrepancy_workflow_runs_on_a_twin_tube(designs, tmp_path):
+    """A twin tube's own simulated records (compliance, curving) through `dampertwin discrepancy`: verdict none
+    (the records are the model's: nothing is missing), the augmented design loads without a P/Q map."""
+    import pandas as pd
+
+    from dampertwin import cli
+    from dampertwin.io import write_frame
+
+    meas = tmp_path / "measured"
+    for test in ("compliance", "curving"):
+        assert cli.main(["simulate", str(DESIGNS / "twin_tube.yaml"), "--test", test, "--out", str(tmp_path / test)]) == 0
+        df = pd.read_parquet(tmp_path / test / f"{test}.parquet")
+        rec = pd.DataFrame({"time [s]": df["time [s]"], "displacement [m]": df["displacement [m]"],
+                            "force [N]": df["rod force [N]"], "current [A]": 0.0, "run": df["run"]})
+        write_frame(meas / test / "baseline.parquet", rec, {"synthetic": True, "protocol": test})
+    out = tmp_path / "out"
+    assert cli.main(["discrepancy", "--design", str(DESIGNS / "twin_tube.yaml"), "--measured", str(meas), "--out",
+                     str(out), "--profile", "ci", "--workers", "1"]) == 0
+    import json
+
+    v = json.loads((out / "verdict.json").read_text())
+    assert v["verdict"] == "none"
+    assert load(out / "design.yaml").architecture == "twin_tube"

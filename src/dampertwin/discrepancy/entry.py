@@ -83,7 +83,9 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
     want = prof["tests"] if tests is None else tests
     maxd = prof.get("max_duration", {}) or {}
     units, variants = [], {}
-    lo, hi = float(design.pq_map.currents[0]), float(design.pq_map.currents[-1])
+    # the current range of the active valve's map (a passive design reads no current: not checked)
+    current_range = ((float(design.pq_map.currents[0]), float(design.pq_map.currents[-1]))
+                     if design.pq_map is not None else None)
     for test, files in usable.items():
         sel = want.get(test, [])
         if sel != "all":
@@ -97,7 +99,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         bench = flow_bench(proto) if cfg_name == "valve" else None
         flow_cut = _flow_input_cutoff(conf) if cfg_name == "valve" else None
         for f in files:
-            df, meta = read_record(f, test, conf=conf, current_range=(lo, hi))  # the one measurement reader
+            df, meta = read_record(f, test, conf=conf, current_range=current_range)  # the one measurement reader
             case = f.stem
             vpath = conf / "variant" / f"{case}.yaml"
             if test in ("monosine", "random", "training", "verification") and vpath.is_file():
@@ -262,6 +264,9 @@ def _dump_design(design, folder: Path) -> None:
     """OUT/design.yaml with its P/Q map beside it (a design that loads on its own)."""
     from ..design import write_map
 
+    if design.pq_map is None:  # a passive architecture: no map beside it
+        (folder / "design.yaml").write_text(design.dumps(folder.resolve()))
+        return
     rel = str(design.param(52).value)
     name = Path(rel).name
     write_map(folder / name, design.pq_map)
