@@ -69,7 +69,8 @@ _SCHEMA: dict[str, dict[str, Any]] = {
 # keys a protocol may leave out (validated when given); a protocol without currents is passive (one run)
 _OPTIONAL: dict[str, dict[str, Any]] = {"dyno": {"currents": list, "rest": float}}
 _CHOICES = {"waveform": ("sine", "triangle")}  # str keys: their allowed values
-DYNO_MIN_CYCLES = {"sine": 3, "triangle": 2}  # a sine burst spends a period fading in and one fading out
+DYNO_MIN_CYCLES = {"sine": 4, "triangle": 3}  # the KPIs need 2 half-strokes per direction after the run-in
+# (a sine burst also spends a period fading in and one fading out)
 # documented bandwidths [Hz] a protocol may name; deflection: the module test's LVDT on the rod (thesis 7.2)
 SENSOR_KEYS = ("force", "acceleration", "temperature", "deflection")
 PROTOCOLS = tuple(_SCHEMA)
