@@ -9,6 +9,7 @@ import traceback
 from pathlib import Path
 
 from .design import TYPES, DesignError, load
+from .design.adjusters import format_adjusters
 from .design.schema import TYPE_MEANING
 from . import __version__
 from .errors import USER_ERROR_EXIT, UserError, debug_enabled, one_line, user_error_types
@@ -48,6 +49,7 @@ def format_table(design, ptype: str | None = None) -> str:
         off = [k for k, v in design.effects.items() if not v]
         lines.append(f"effects on: {', '.join(on) or '-'}; off: {', '.join(off) or '-'}")
         lines.append(f"constants: {len(design.constants)} (see the YAML 'constants:' section)")
+        lines += format_adjusters(design)
     return "\n".join(lines)
 
 
@@ -226,7 +228,14 @@ def _run_design(args) -> int:
     except DesignError as e:  # the documented exit 1: every problem the check found
         print(str(e), file=sys.stderr)
         return 1
-    print(f"{args.path}: OK ({len(design.parameters)} parameters, hash {design.hash()})")
+    from .design.architecture import DESCRIPTION, is_placeholder
+
+    held = sum(is_placeholder(p.source, design.architecture) for p in design.parameters.values())
+    arch = f"architecture {design.architecture}: {DESCRIPTION[design.architecture]}"
+    adj = "".join(f", adjuster {n}: {a.key} {len(a.clicks)} clicks at {design.setting[n]}"
+                  for n, a in design.adjusters.items())
+    print(f"{args.path}: OK ({arch}; {len(design.parameters) - held} parameters"
+          + (f", {held} of parts it lacks filled with placeholders" if held else "") + f", hash {design.hash()}{adj})")
     return 0
 
 
@@ -271,9 +280,12 @@ def _add_import_fit(sub) -> None:
     imp.add_argument("--map", required=True, dest="mapping", help="column mapping YAML (quantity + unit per column)")
     imp.add_argument("--out", required=True, help="output Parquet, e.g. data/own/monosine/baseline_1.6.parquet")
     imp.add_argument("--protocol", help="test schema to check (default: the mapping's or the output folder name)")
-    fit = sub.add_parser("fit", help="fit one submodel on a bench record: valve | compliance | topmount | friction")
-    fit.add_argument("submodel", choices=("valve", "compliance", "topmount", "friction"))
-    fit.add_argument("--data", required=True, help="the record to fit (Parquet or CSV, project schema)")
+    fit = sub.add_parser("fit", help="fit one submodel on a bench record: valve | compliance | topmount | friction; "
+                                     "or the whole damper on dyno records: damper")
+    fit.add_argument("submodel", choices=("valve", "compliance", "topmount", "friction", "damper"))
+    fit.add_argument("--data", required=True, help="the record to fit (Parquet or CSV, project schema); damper: "
+                                                   "a comma-separated list a.parquet,b.parquet (each at the clicker "
+                                                   "setting its metadata names)")
     fit.add_argument("--design", default=str(DEFAULT_DESIGN), help="design YAML (start values, constants)")
     fit.add_argument("--out", required=True, help="output folder: fit.json and PNG plots")
     fit.add_argument("--predict", nargs="*", default=[], help="records only predicted (NRMSE reported)")

@@ -309,6 +309,22 @@ def regrid_stamps(t: np.ndarray, stamps: dict, runs: np.ndarray | None, label: s
     return out, info
 
 
+def _setting_meta(mapping: dict, where: str) -> dict:
+    """``{"setting": {adjuster: click}}`` for the record's metadata from the mapping's optional
+    ``setting: {rebound: R, compression: C}`` (clicks counted out from fully closed,
+    design/adjusters.py); {} when the mapping names none."""
+    from .design.adjusters import ADJUSTER_NAMES
+
+    s = mapping.get("setting")
+    if s is None:
+        return {}
+    if not (isinstance(s, dict) and s and all(n in ADJUSTER_NAMES and isinstance(k, int) and not isinstance(k, bool)
+                                              and k >= 0 for n, k in s.items())):
+        raise MappingError(f"{where}: setting: {s!r}; expected {{rebound: R, compression: C}} (either or both): "
+                           f"click numbers >= 0, counted out from fully closed")
+    return {"setting": dict(s)}
+
+
 def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike, out: str | os.PathLike, *,
                        protocol: str | None = None) -> Path:
     """Convert ``src`` (CSV / Parquet / JSON matrix) with ``mapping`` (dict or YAML path) and
@@ -345,9 +361,10 @@ def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike
     res = convert(df, mapping, where=f"{src} (mapping {map_where})")
     if not isinstance(mapping.get("synthetic", False), bool):
         raise MappingError(f"{map_where}: synthetic: {mapping['synthetic']!r}; expected true or false")
-    meta = {"imported": True, "synthetic": mapping.get("synthetic", False), "source": src.name, "source_sha256": file_sha256(src),
-            "mapping": _plain(mapping), "protocol": protocol,
-            "units": {str(k): v.get("unit") for k, v in mapping["columns"].items() if isinstance(v, dict)}}
+    meta = {"imported": True, "synthetic": mapping.get("synthetic", False), "source": src.name,
+            "source_sha256": file_sha256(src), "mapping": _plain(mapping), "protocol": protocol,
+            "units": {str(k): v.get("unit") for k, v in mapping["columns"].items() if isinstance(v, dict)},
+            **_setting_meta(mapping, map_where)}
     if "time stamps" in res.attrs:
         meta["time stamps"] = res.attrs["time stamps"]
     # the record passes the measurement reader's checks before anything is written (an earlier file stays)

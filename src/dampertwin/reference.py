@@ -70,14 +70,13 @@ def simulate_reference(design: Design, excitation: Excitation, configuration: st
                        timeout_s: float = 3600.0) -> Result:
     """Same interface as :func:`dampertwin.simulate`, reference integrator.
     ``result.stats.wall_s`` is the integration time inside the child process."""
-    from .model.active_valve import pack_map
     from .model.layout import initial_state, state_scales
+    from .simulation import model_map
 
     cfg, p = _setup(design, excitation, configuration, current, effects, bench_valve)
     t_out = _time_grid(excitation, duration, rate)
     y0 = initial_state(p, cfg)
-    pq = design.pq_map
-    arrays = dict(p=p, ex=excitation.array(), aux=pack_map(pq.currents, pq.dps, pq.flow), configuration=configuration,
+    arrays = dict(p=p, ex=excitation.array(), aux=model_map(design.pq_map), configuration=configuration,
                   y0=y0, t_out=t_out, rtol=rtol, atol_scale=state_scales(cfg))
     from numba import config as nb_config
 

@@ -74,7 +74,8 @@ def simulate_test(design_path: str | Path, test: str, out: str | Path, *, case: 
     frames = [_run_frame(design, r, protocol) for r in select_runs(protocol, test, case, current)]
     df = pd.concat(frames, ignore_index=True)
     meta = {"synthetic": True, "simulated": True, "design": str(design_path), "design_hash": design.hash(),
-            "test": test, "runs": [f["run"].iloc[0] for f in frames], "dampertwin": __version__}
+            "test": test, "runs": [f["run"].iloc[0] for f in frames], "dampertwin": __version__,
+            **({"setting": design.setting} if design.adjusters else {})}  # the record names its clicks
     out.mkdir(parents=True, exist_ok=True)
     pq = write_frame(out / f"{test}.parquet", df, meta)
     png = out / f"{test}.png"

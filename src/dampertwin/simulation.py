@@ -90,7 +90,7 @@ def _setup(design, excitation, configuration, current, effects, bench_valve, ben
         raise ValueError(f"the valve configuration needs bench_valve in {L.VALVE_NAMES}, got {bench_valve!r}")
     if not (isinstance(current, (int, float, np.floating)) and np.isfinite(current)):
         raise ValueError(f"current must be a finite number [A], got {current!r}")
-    if cfg in (L.CFG_DAMPER, L.CFG_MODULE):
+    if cfg in (L.CFG_DAMPER, L.CFG_MODULE) and design.pq_map is not None:  # a passive design has no map
         lo, hi = float(np.min(design.pq_map.currents)), float(np.max(design.pq_map.currents))
         if not lo - 1e-9 <= current <= hi + 1e-9:
             raise ValueError(f"current {current!r} A is outside the active-valve map of design {design.name!r} "
@@ -111,10 +111,12 @@ def _problem(configuration, cfg, P, ex, aux, t_out):
     """Compiled RHS, state scales and probed sparsity of a configuration.
     The probe is cached per configuration, pattern of zero parameters (a
     zero removes a dependency) and value of the selector parameters (the
-    flow bench's valve selects which valve's equations, hence states, run)."""
+    flow bench's valve selects which valve's equations, hence states, run; the
+    architecture which chambers and valves are coupled)."""
     rhs = RHS_BY_CFG[cfg]
     rows = np.asarray(P)[:8]
-    key = (configuration, cfg, np.packbits(rows != 0.0).tobytes(), rows.shape, rows[:, L.P.BENCH_VALVE].tobytes())
+    key = (configuration, cfg, np.packbits(rows != 0.0).tobytes(), rows.shape, rows[:, L.P.BENCH_VALVE].tobytes(),
+           rows[:, L.P.ARCH].tobytes())
     sp = _SPARSITY_CACHE.get(key)
     if sp is None:
         sp = sparsity(rhs, cfg, rows, ex, aux, (float(t_out[0]), float(t_out[-1])))
@@ -153,12 +155,20 @@ def simulate(design: Design, excitation: Excitation, configuration: str = "modul
                          + "; ".join(bad))
     t_out = _time_grid(excitation, duration, rate)
     y0 = initial_state(p, cfg)
-    aux = pack_map(design.pq_map.currents, design.pq_map.dps, design.pq_map.flow)
+    aux = model_map(design.pq_map)
     ex = excitation.array()
     kw, rhs = _problem(configuration, cfg, p[None, :], ex, aux, t_out)
     out, _, stats = integrate(rhs, p, ex, aux, y0, t_out, rtol=rtol, atol=atol, max_steps=max_steps,
                               max_wall_s=max_wall_s, h_max=h_max, method=method or default_method(rtol), **kw)
     return Result(configuration, t_out, _channels(cfg, out), stats, design.hash(), current)
+
+
+def model_map(pq_map) -> np.ndarray:
+    """The active-valve map as the model's ``aux`` vector (active_valve.pack_map); for a design without an
+    active valve (pq_map None, a passive architecture) a zero map the model never reads."""
+    if pq_map is None:
+        return pack_map([0.0, 1.0], [0.0, 1.0], np.zeros((2, 2)))
+    return pack_map(pq_map.currents, pq_map.dps, pq_map.flow)
 
 
 def simulate_batch(designs: list[Design], excitation: Excitation, configuration: str = "module", *,
@@ -196,7 +206,7 @@ def simulate_batch(designs: list[Design], excitation: Excitation, configuration:
     if unknown:
         raise ValueError(f"unknown output channel(s) {unknown}; expected some of {list(names)}")
     idx = np.array([names[c] for c in cols], np.int64)
-    aux = pack_map(pqm.currents, pqm.dps, pqm.flow)
+    aux = model_map(pqm)
     ex = excitation.array()
     valid = P[~invalid] if np.any(~invalid) else P[:1]
     kw, rhs = _problem(configuration, cfg, valid, ex, aux, t_out)

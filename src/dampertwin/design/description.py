@@ -26,6 +26,8 @@ import numpy as np
 import yaml
 
 from ..errors import UserError
+from . import architecture as _arch
+from .adjusters import adjusters_doc, at_setting, current_setting, parse_adjusters
 from .schema import (
     BY_NUMBER,
     CONSTANT_TYPES,
@@ -43,7 +45,8 @@ from .schema import (
 
 PARAM_FIELDS = ("no", "name", "symbol", "group", "description", "type", "value", "unit", "source")
 CONST_FIELDS = ("name", "symbol", "description", "type", "value", "unit", "source")
-TOP_KEYS = ("design", "description", "parameters", "constants", "effects", "effect_parameters")
+TOP_KEYS = ("design", "description", "architecture", "parameters", "constants", "effects", "effect_parameters",
+            "adjusters", "setting")
 EFFECT_PARAM_FIELDS = ("name", "effect", "symbol", "description", "type", "value", "unit", "source", "typical")
 EFFECT_PARAM_TYPES = ("C", "F")
 
@@ -257,10 +260,12 @@ class PQMap:
     __hash__ = None  # type: ignore[assignment]
 
 
-def _rebuild_design(name, description, parameters, constants, effects, pq_map, path, map_dirs, effect_params):
+def _rebuild_design(name, description, parameters, constants, effects, pq_map, path, map_dirs, effect_params,
+                    architecture=_arch.DEFAULT, adjusters=None):
     """``Design.__reduce__``'s constructor."""
     return Design(name, description, MappingProxyType(parameters), MappingProxyType(constants),
-                  MappingProxyType(effects), pq_map, path, map_dirs, MappingProxyType(effect_params))
+                  MappingProxyType(effects), pq_map, path, map_dirs, MappingProxyType(effect_params), architecture,
+                  adjusters=MappingProxyType(adjusters or {}))
 
 
 @dataclass(frozen=True, eq=False)
@@ -273,16 +278,18 @@ class Design:
     parameters: Mapping[int, Parameter]
     constants: Mapping[str, Constant]
     effects: Mapping[str, bool]
-    pq_map: PQMap
+    pq_map: PQMap | None  # None: an architecture without the active valve (design/architecture.py)
     path: Path | None = field(default=None, compare=False)
     map_dirs: tuple = field(default=(), compare=False)  # extra folders the P/Q map may live in
     effect_params: Mapping[str, EffectParameter] = field(default_factory=lambda: MappingProxyType({}))
+    architecture: str = _arch.DEFAULT  # design key ``architecture:`` (design/architecture.py)
+    adjusters: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))  # name -> adjusters.Adjuster
     _memo: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         # read-only views of private copies: a Design never changes, so what is derived from it
         # (hash, the packed parameter vector) is computed once and kept in _memo
-        for name in ("parameters", "constants", "effects", "effect_params"):
+        for name in ("parameters", "constants", "effects", "effect_params", "adjusters"):
             object.__setattr__(self, name, MappingProxyType(dict(getattr(self, name))))
 
     def memo(self, key, compute):
@@ -295,7 +302,8 @@ class Design:
         """Picklable (process pools run designs in other processes): the
         read-only mappings travel as dicts and come back read-only."""
         return (_rebuild_design, (self.name, self.description, dict(self.parameters), dict(self.constants),
-                                  dict(self.effects), self.pq_map, self.path, self.map_dirs, dict(self.effect_params)))
+                                  dict(self.effects), self.pq_map, self.path, self.map_dirs, dict(self.effect_params),
+                                  self.architecture, dict(self.adjusters)))
 
     def effect_parameters(self, effect: str | None = None) -> list[EffectParameter]:
         """The effect parameters (all, or those of one effect), in file order."""
@@ -352,6 +360,16 @@ class Design:
 
     __hash__ = None  # type: ignore[assignment]
 
+    # ---- adjusters (design/adjusters.py) -----------------------------------
+    @property
+    def setting(self) -> dict[str, int]:
+        """The click of each adjuster (0 = fully closed); {} without ``adjusters:``."""
+        return current_setting(self)
+
+    def at_setting(self, setting: Mapping[str, int], source: str | os.PathLike | None = None) -> "Design":
+        """A new design with its adjusters at ``setting`` (e.g. ``{"rebound": 3}``), through ``with_overrides``."""
+        return at_setting(self, setting, source)
+
     # ---- variants ---------------------------------------------------------
     def with_overrides(self, overrides: Mapping[Any, Any], source: str | os.PathLike | None = None) -> "Design":
         """A new validated design with some values replaced.
@@ -366,6 +384,7 @@ class Design:
         if not isinstance(overrides, Mapping):
             raise DesignError([f"{where}: overrides must be a mapping of parameter -> value, got {type(overrides).__name__}"])
         doc = self._doc(self.path.parent if self.path else None)
+        doc.pop("setting", None)  # the adjusters' setting follows the overridden values (design/adjusters.py)
         errors: list[str] = []
         pindex = {p["no"]: p for p in doc["parameters"]}
         cindex = {c["name"]: c for c in doc["constants"]}
@@ -410,6 +429,8 @@ class Design:
         params = []
         for no in sorted(self.parameters):
             p = self.parameters[no]
+            if _arch.is_placeholder(p.source, self.architecture):
+                continue
             value = p.value
             if isinstance(value, tuple):
                 value = list(value)
@@ -426,17 +447,19 @@ class Design:
         consts = [
             {"name": c.name, "symbol": c.symbol, "description": c.description, "type": c.type,
              "value": c.value, "unit": c.unit, "source": c.source}
-            for c in self.constants.values()
+            for c in self.constants.values() if not _arch.is_placeholder(c.source, self.architecture)
         ]
         doc = {
             "design": self.name,
             "description": self.description,
+            **({"architecture": self.architecture} if self.architecture != _arch.DEFAULT else {}),
             "parameters": params,
             "constants": consts,
             "effects": dict(self.effects),
         }
         if self.effect_params:
             doc["effect_parameters"] = [_effect_param_doc(e) for e in self.effect_params.values()]
+        doc.update(adjusters_doc(self))
         return doc
 
     def dumps(self, rel_to: Path | None = None) -> str:
@@ -469,8 +492,9 @@ class Design:
             "e": sorted(self.effects.items()),
             **({"ep": sorted([e.key, e.type, e.unit, _canon(e.value), _canon(e.bounds)]
                              for e in self.effect_params.values())} if self.effect_params else {}),
-            "m": [_canon(tuple(self.pq_map.currents)), _canon(tuple(self.pq_map.dps)),
-                  _canon(tuple(self.pq_map.flow.ravel()))],
+            "m": None if self.pq_map is None else [_canon(tuple(self.pq_map.currents)), _canon(tuple(self.pq_map.dps)),
+                                                   _canon(tuple(self.pq_map.flow.ravel()))],
+            **({"a": self.architecture} if self.architecture != _arch.DEFAULT else {}),
         }
         blob = json.dumps(content, sort_keys=True, separators=(",", ":")).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
@@ -583,12 +607,19 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
         errors.append(f"{where}: 'description' must be a string")
         description = str(description)
 
+    arch = _arch.parse(doc, where, errors)
     params, pq_map = _parse_parameters(doc.get("parameters"), where, base_dir, errors, known_map,
-                                       (base_dir, *map_dirs, *_env_map_dirs()))
-    constants = _parse_constants(doc.get("constants"), where, errors)
+                                       (base_dir, *map_dirs, *_env_map_dirs()), _arch.UNUSED_NUMBERS[arch])
+    constants = _parse_constants(doc.get("constants"), where, errors, _arch.UNUSED_CONSTANTS[arch])
     effects = _parse_effects(doc.get("effects"), where, errors)
+    _arch.check_effects(arch, effects, where, errors)
     effect_params = _parse_effect_parameters(doc.get("effect_parameters", []), effects, where, errors)
+    _fill_placeholders(arch, params, constants)
     _check_physics(params, constants, where, errors)
+    _arch.check_gas_volume(arch, {p.key: p.value for p in params.values()}, {c.name: c.value for c in constants.values()},
+                           where, errors)
+    adjusters = parse_adjusters(doc.get("adjusters"), doc.get("setting"), params, where, errors)
+    _arch.check_adjusters(arch, adjusters, where, errors)
     if errors:
         raise DesignError(errors)
     return Design(
@@ -601,11 +632,26 @@ def _from_doc(doc: Any, path: Path | None, base_dir: Path, where: str | None = N
         path=path,
         map_dirs=tuple(map_dirs),
         effect_params=MappingProxyType(effect_params),
+        architecture=arch,
+        adjusters=MappingProxyType(adjusters),
     )
 
 
+def _fill_placeholders(arch: str, params: dict, constants: dict) -> None:
+    """Add the numbers / constants of parts ``arch`` lacks that the file left out (design/architecture.py)."""
+    nos, cons = _arch.placeholder_values(arch, {n: p.value for n, p in params.items()},
+                                         {n: c.value for n, c in constants.items()})
+    src = _arch.PLACEHOLDER.format(arch=arch)
+    for no, v in nos.items():
+        s = BY_NUMBER[no]
+        params[no] = Parameter(no=no, name=s.name, symbol=s.name, group=s.group, description=src, type="F",
+                               value=v, unit=s.unit, source=src)
+    for name, v in cons.items():
+        constants[name] = Constant(name, name, src, "F", float(v), CONSTANTS[name], src)
+
+
 def _parse_parameters(items, where, base_dir, errors, known_map=None,
-                      allowed_dirs=()) -> tuple[dict[int, Parameter], PQMap | None]:
+                      allowed_dirs=(), optional=()) -> tuple[dict[int, Parameter], PQMap | None]:
     out: dict[int, Parameter] = {}
     pq_map = None
     if not isinstance(items, list):
@@ -681,7 +727,7 @@ def _parse_parameters(items, where, base_dir, errors, known_map=None,
                 source=item["source"], bounds=bounds,
             )
     for no in BY_NUMBER:
-        if no not in seen:
+        if no not in seen and no not in optional:
             s = BY_NUMBER[no]
             errors.append(f"{where}: no. {no} ({s.group}.{s.name}): missing number (table 5.1 has it)")
     return out, pq_map
@@ -754,7 +800,7 @@ def _check_bounds(bounds, ptype, value, spec, label, errors):
     return out
 
 
-def _parse_constants(items, where, errors) -> dict[str, Constant]:
+def _parse_constants(items, where, errors, optional=()) -> dict[str, Constant]:
     out: dict[str, Constant] = {}
     if not isinstance(items, list):
         errors.append(f"{where}: 'constants' must be a list of entries")
@@ -793,7 +839,7 @@ def _parse_constants(items, where, errors) -> dict[str, Constant]:
         if len(errors) == n_err:
             out[nm] = Constant(nm, item["symbol"], item["description"], item["type"], float(v), unit, item["source"])
     for nm in CONSTANTS:
-        if nm not in out and not any(isinstance(i, dict) and i.get("name") == nm for i in items):
+        if nm not in out and nm not in optional and not any(isinstance(i, dict) and i.get("name") == nm for i in items):
             errors.append(f"{where}: constant {nm!r} missing (expected in {CONSTANTS[nm]})")
     return out
 

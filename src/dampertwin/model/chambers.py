@@ -10,6 +10,7 @@ import math
 
 from numba import njit
 
+from ..design.architecture import ARCHITECTURES
 from .declarations import Parameter, State
 from .fluid import emulsion_bulk_modulus, series_bulk_modulus, wall_bulk_modulus
 
@@ -24,7 +25,10 @@ PARAMETERS = (
     Parameter("P0", "Pa", "oil.P_0", "precharge pressure (absolute)"),
     Parameter("V_G0", "m^3", "constants.V_gas0", "reserve gas volume at the precharge"),
     Parameter("E_CAV", "-", "effects.cavitation", "switch: cavitation floor of the chamber modulus"),
+    Parameter("ARCH", "-", lambda d: ARCHITECTURES[d.architecture],
+              "architecture: 0 triple tube semi-active, 1 twin tube, 2 mono tube (design/architecture.py)"),
 )
+TWIN_TUBE, MONO_TUBE = ARCHITECTURES["twin_tube"], ARCHITECTURES["mono_tube"]
 
 STATES = (
     State("P_r", "Pa", 1e5, lambda q: q["P0"], "rebound chamber pressure, eq. 4.10"),
@@ -63,6 +67,20 @@ def cavitation_factor(P, P_vap):
 def pressure_rate(K, V, dV, Q_out):
     """dP/dt = -K/V (dV/dt + Q_out), eq. 4.9-4.12, Q_out the net outflow."""
     return -K / V * (dV + Q_out)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def floating_piston(K_c, V_c, dV_c, Q_out, P_gas, V_g, gamma):
+    """Mono tube: the compression chamber's oil (modulus K_c [Pa], volume V_c
+    [m^3]) and the gas chamber (P_gas [Pa], V_g [m^3], polytropic index gamma)
+    behind a massless, frictionless floating piston, so P_c = P_gas and their
+    compliances add: V_c / K_c + V_g / (gamma P_gas) [m^3/Pa] (eq. 4.9 with
+    the gas spring of THESIS-ERRATA 8 in series; Talbott & Starkey 2002).
+    dV_c [m^3/s]: the chamber's volume rate at a fixed floating piston; Q_out
+    [m^3/s]: its net oil outflow. Returns (dP_c/dt [Pa/s], dV_g/dt [m^3/s])."""
+    c_gas = V_g / (gamma * P_gas)
+    dP = -(dV_c + Q_out) / (V_c / K_c + c_gas)
+    return dP, -c_gas * dP
 
 
 @njit(cache=True, error_model="numpy")

@@ -42,7 +42,7 @@ from .aeration import aeration
 from .bench import upstream_modulus, upstream_pressure_rate
 from .fixture_resonance import load_cell
 from .gas_release import gas_release
-from .chambers import chamber_volumes, moduli, pressure_rate, rod_force
+from .chambers import MONO_TUBE, TWIN_TUBE, chamber_volumes, floating_piston, moduli, pressure_rate, rod_force
 from .fluid import gas_spring_pressure
 from .inputs import hermite
 from .layout import (BB, CFG_DAMPER, CFG_DAMPER_X, CFG_MODULE, CFG_MODULE_X, CFG_TOPMOUNT, CFG_VALVE, EB_DAMPER,
@@ -53,7 +53,7 @@ from .rod import motion, rod_position, stroke
 from .rod_friction import friction
 from .top_mount import mount
 from .valve_friction_current import spool_pressure
-from .valves import bypass, valve
+from .valves import bypass, valve, valve_absent
 
 SIGNATURE = rhs_signature()
 
@@ -82,7 +82,13 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     P_c = y[S.P_c]
     P_b = y[S.P_b]
     oe = EB_MODULE if module else EB_DAMPER  # effect states (extended configurations)
+    # architecture (design/architecture.py): the passive ones lack the third tube and the active valve,
+    # the mono tube also the base valves (its gas sits behind a floating piston)
+    mono = p[P.ARCH] == MONO_TUBE
+    passive = mono or p[P.ARCH] == TWIN_TUBE
     P_res = gas_spring_pressure(p[P.P0], p[P.V_G0], y[S.V_g], p[P.GAMMA])
+    if mono:  # the floating piston holds the compression chamber at the gas pressure (chambers.floating_piston)
+        P_c = P_res
     K_oil = p[P.K_OIL]
     T_oil = p[P.TEMP]
     if extended:  # oil_thermal: the reserve gas at the oil temperature, the oil's modulus at it
@@ -98,22 +104,29 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     # 2 base compression c->res, 3 base intake res->c
     Q0 = valve(y, SB.piston_rebound, 0, p, P_r, P_c, dy, nu)
     Q1 = valve(y, SB.piston_intake, 1, p, P_c, P_r, dy, nu)
-    Q2 = valve(y, SB.base_compression, 2, p, P_c, P_res, dy, nu)
-    Q3 = valve(y, SB.base_intake, 3, p, P_res, P_c, dy, nu)
+    if mono:
+        Q2 = valve_absent(SB.base_compression, 2, p, dy)
+        Q3 = valve_absent(SB.base_intake, 3, p, dy)
+    else:
+        Q2 = valve(y, SB.base_compression, 2, p, P_c, P_res, dy, nu)
+        Q3 = valve(y, SB.base_intake, 3, p, P_res, P_c, dy, nu)
     Q_p = Q0 - Q1 + leakage(p, P_r, P_c, p[P.NU] / nu)  # rebound -> compression (THESIS-ERRATA 7)
     Q_bv = Q2 - Q3  # compression -> reserve
-    Q_bp = bypass(p, P_r, P_b)
-    # active valve: static map (4.4); the effects spool friction and lag move its opening
-    # (the map's opening at p_o, under the actual drop: active_valve.opening_flow)
-    dp_a = P_b - P_res
-    I_a = commanded_current(p)
-    if extended:  # active_valve_driver: the valve sees the coil's effective current (the command when off)
-        I_a = effective_current(t, y, oe + EX.i_coil, p, dy)
-    Q_a = active_flow(p, aux, dp_a, I_a)
-    if extended:
-        p_o = spool_pressure(y, oe + EX.p_spool, p, dp_a, dy, I_a)
-        p_o = opening_pressure(y, oe + EX.p_open, p, p_o, dy)
-        Q_a = opening_flow(p, aux, p_o, dp_a, Q_a, I_a)
+    Q_bp = 0.0
+    Q_a = 0.0
+    if not passive:
+        Q_bp = bypass(p, P_r, P_b)
+        # active valve: static map (4.4); the effects spool friction and lag move its opening
+        # (the map's opening at p_o, under the actual drop: active_valve.opening_flow)
+        dp_a = P_b - P_res
+        I_a = commanded_current(p)
+        if extended:  # active_valve_driver: the valve sees the coil's effective current (the command when off)
+            I_a = effective_current(t, y, oe + EX.i_coil, p, dy)
+        Q_a = active_flow(p, aux, dp_a, I_a)
+        if extended:
+            p_o = spool_pressure(y, oe + EX.p_spool, p, dp_a, dy, I_a)
+            p_o = opening_pressure(y, oe + EX.p_open, p, p_o, dy)
+            Q_a = opening_flow(p, aux, p_o, dp_a, Q_a, I_a)
 
     # rod friction (eq. 4.38-4.41) and rod force (eq. 4.1); oil_thermal heats with F_d s'
     F_mu = friction(y, SB.rod_friction, p, sd, dy, P_r)
@@ -123,8 +136,11 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
         dT = heat(y, oe + EX.T_oil, p, F_d * sd, dy)  # dissipated power F_d s' [W]
 
     # compliance (eq. 4.13-4.18) and chambers (eq. 4.5-4.12)
-    K_r, K_c, K_b = moduli(p, P_r, P_c, P_b, P_res, K_oil, T_oil)
+    # the pressure tube's outside: the reserve, or the atmosphere around a mono tube
+    K_r, K_c, K_b = moduli(p, P_r, P_c, P_b, p[P.P_ATM] if mono else P_res, K_oil, T_oil)
     V_r, V_c = chamber_volumes(s, A_r, A_b, p[P.L_R0], p[P.L_C0])
+    if mono:  # the floating piston has moved by the gas volume's change
+        V_c += p[P.V_G0] - y[S.V_g]
     dV_r = -A_r * sd
     dV_c = A_b * sd
     dV_b = 0.0
@@ -143,9 +159,15 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
         dV_c -= e_c
         dV_b -= e_b
     dy[S.P_r] = pressure_rate(K_r, V_r, dV_r, Q_p + Q_bp)
-    dy[S.P_c] = pressure_rate(K_c, V_c, dV_c, -Q_p + Q_bv)
-    dy[S.P_b] = pressure_rate(K_b, p[P.V_B], dV_b, Q_a - Q_bp)
-    dy[S.V_g] = -(Q_bv + Q_a)  # reserve gas (THESIS-ERRATA 8)
+    if mono:
+        dy[S.P_c], dy[S.V_g] = floating_piston(K_c, V_c, dV_c, -Q_p, P_res, y[S.V_g], p[P.GAMMA])
+    else:
+        dy[S.P_c] = pressure_rate(K_c, V_c, dV_c, -Q_p + Q_bv)
+        dy[S.V_g] = -(Q_bv + Q_a)  # reserve gas (THESIS-ERRATA 8)
+    if passive:  # no third tube: its pressure state stays at the precharge
+        dy[S.P_b] = 0.0
+    else:
+        dy[S.P_b] = pressure_rate(K_b, p[P.V_B], dV_b, Q_a - Q_bp)
 
     F_tm = 0.0
     a_rod = 0.0

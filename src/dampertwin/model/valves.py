@@ -287,6 +287,17 @@ def valve(y, o, k, p, p1, p2, dy, nu):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def valve_absent(o, k, p, dy):
+    """A valve the architecture lacks (a mono tube's base valves): its states
+    at y[o + VS.*] stay at rest; no flow."""
+    dy[o + VS.x] = 0.0
+    dy[o + VS.v] = 0.0
+    if p[_L.P.VALVES + k * V_SIZE + V.SHIM] > 0.5:
+        dy[o + VS.F_dahl] = 0.0
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def bypass(p, P_r, P_b):
     """Bypass orifice rebound chamber -> third tube [m^3/s] (eq. 4.29)."""
     return orifice_flow(p[_L.P.CQ_BP] * p[_L.P.A_BP], P_r - P_b, p[_L.P.RHO], p[_L.P.P_TR])

@@ -1,0 +1,211 @@
+"""Damper architectures (design key ``architecture:``): the thesis' triple tube unchanged, passive twin-tube and
+mono-tube dampers from the same submodels, each checked on a property that fails if its physics were wrong."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from dampertwin.design import DesignError, load, loads
+from dampertwin.design.architecture import PLACEHOLDER, UNUSED_NUMBERS
+from dampertwin.excitation import Excitation
+from dampertwin.model.params import pack
+from dampertwin.simulation import simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+DESIGNS = ROOT / "conf" / "design"
+
+
+@pytest.fixture(scope="module")
+def designs():
+    return {n: load(DESIGNS / f"{n}.yaml") for n in ("baseline", "twin_tube", "mono_tube")}
+
+
+def _doc(name: str) -> dict:
+    return yaml.safe_load((DESIGNS / f"{name}.yaml").read_text())
+
+
+def _loads(doc: dict, where: str = "probe.yaml"):
+    return loads(yaml.safe_dump(doc, sort_keys=False), base_dir=DESIGNS, where=where)
+
+
+def _sine(design, amplitude=0.02, frequency=2.0, cycles=3, current=0.0, configuration="damper", effects=None):
+    ex = Excitation.sine(amplitude=amplitude, frequency=frequency, duration=cycles / frequency)
+    return simulate(design, ex, configuration, current=current, effects=effects)
+
+
+def test_the_thesis_damper_is_the_default_and_naming_it_changes_nothing(designs):
+    base = designs["baseline"]
+    assert base.architecture == "triple_tube_semi_active"
+    named = _loads({**_doc("baseline"), "architecture": "triple_tube_semi_active"})
+    assert named.hash() == base.hash()
+    assert np.array_equal(pack(named), pack(base))
+    assert "architecture" not in base.dumps()  # the default is not written: old files round-trip byte for byte
+
+
+@pytest.mark.parametrize("name", ["twin_tube", "mono_tube"])
+def test_a_passive_design_round_trips_without_its_placeholders(designs, name, tmp_path):
+    d = designs[name]
+    assert d.architecture == name and d.pq_map is None
+    left_out = [n for n in UNUSED_NUMBERS[name] if d.parameters.get(n) and d.parameters[n].source
+                == PLACEHOLDER.format(arch=name)]
+    assert left_out, "the example leaves the parts it lacks out of the file"
+    text = d.dumps()
+    assert f"architecture: {name}" in text and "placeholder" not in text
+    again = load(d.dump(tmp_path / f"{name}.yaml"))
+    assert again == d and again.hash() == d.hash()
+
+
+def test_unknown_architecture_and_missing_parts_are_named():
+    with pytest.raises(DesignError, match=r"probe.yaml: architecture: 'quad_tube'; expected one of"):
+        _loads({**_doc("baseline"), "architecture": "quad_tube"})
+    doc = _doc("twin_tube")  # the thesis' damper needs its third tube: leaving it out is an error there
+    doc["architecture"] = "triple_tube_semi_active"
+    with pytest.raises(DesignError) as e:
+        _loads(doc)
+    assert "no. 4 (geometry.V_b): missing number" in str(e.value)
+    assert "no. 52 (active_valve.pq_map): missing number" in str(e.value)
+
+
+@pytest.mark.parametrize("name,effect", [("twin_tube", "active_valve_lag"), ("mono_tube", "active_valve_driver"),
+                                         ("mono_tube", "oil_thermal")])
+def test_effects_a_passive_damper_has_no_part_for_are_refused(name, effect):
+    doc = _doc(name)
+    doc["effects"][effect] = True
+    with pytest.raises(DesignError, match=rf"probe.yaml: effects.{effect}: true"):
+        _loads(doc)
+
+
+def test_the_gas_must_take_the_rod_volume():
+    doc = _doc("mono_tube")
+    for c in doc["constants"]:
+        if c["name"] == "V_gas0":
+            c["value"] = 1e-6
+    with pytest.raises(DesignError, match=r"constant 'V_gas0': value 1e-06; expected > the rod's swept volume"):
+        _loads(doc)
+
+
+def _gas_volume(r, design):
+    """Gas volume [m^3] from the gas pressure (polytropic, THESIS-ERRATA 8)."""
+    P0, V0, g = design["oil.P_0"], design.constant("V_gas0"), design["oil.Gamma"]
+    return V0 * (P0 / r.channels["p reserve [Pa]"]) ** (1.0 / g)
+
+
+@pytest.mark.parametrize("name", ["twin_tube", "mono_tube"])
+def test_the_gas_takes_the_rod_volume_and_no_third_tube_or_active_valve_acts(designs, name):
+    """Volume balance of the oil (eq. 4.9-4.12): the gas volume changes by the rod's swept volume A_rod s plus
+    the oil volume the chambers' pressures store (the time integral of the storage channels V / K dP/dt);
+    the passive damper's third tube and active valve carry nothing."""
+    from scipy.integrate import cumulative_trapezoid
+
+    d = designs[name]
+    r = _sine(d, amplitude=0.02, frequency=2.0, cycles=2)
+    c = r.channels
+    a_rod = math.pi * d["geometry.D_R"] ** 2 / 4.0
+    dv = _gas_volume(r, d) - d.constant("V_gas0")
+    stored = cumulative_trapezoid(c["storage rebound [m^3/s]"] + c["storage compression [m^3/s]"], r.time,
+                                  initial=0.0)
+    assert np.max(np.abs(stored)) > 0.01 * a_rod * 0.02  # the storage term matters at this speed
+    assert np.max(np.abs(dv - (a_rod * c["stroke [m]"] + stored))) < 0.005 * a_rod * 0.02
+    np.testing.assert_allclose(c["p third tube [Pa]"], d["oil.P_0"], rtol=1e-9)
+    assert np.all(c["flow active valve [m^3/s]"] == 0.0)
+    assert np.all(c["flow bypass [m^3/s]"] == 0.0)
+
+
+def test_mono_tube_floating_piston_keeps_the_compression_chamber_at_the_gas_pressure(designs):
+    d = designs["mono_tube"]
+    r = _sine(d, amplitude=0.02, frequency=5.0, cycles=2)
+    pc, pg = r.channels["p compression [Pa]"], r.channels["p reserve [Pa]"]
+    assert np.max(np.abs(pc - pg)) < 1e-6 * np.max(pg)
+    assert np.all(r.channels["flow base_compression [m^3/s]"] == 0.0)
+    assert np.all(r.channels["flow base_intake [m^3/s]"] == 0.0)
+    # at rest the gas pushes the rod out with (P_0 - P_atm) A_rod (a compressive rod force)
+    a_rod = math.pi * d["geometry.D_R"] ** 2 / 4.0
+    assert r.channels["rod force [N]"][0] == pytest.approx(-(d["oil.P_0"] - d.constant("P_atm")) * a_rod, rel=1e-6)
+
+
+@pytest.mark.parametrize("name", ["twin_tube", "mono_tube"])
+def test_passive_dampers_dissipate_and_ignore_the_current(designs, name):
+    """Passivity: the work of the rod force over a steady cycle is dissipated (loop area > 0), rebound force
+    above compression force at the velocity peaks; the current is not read (no active valve)."""
+    d = designs[name]
+    r = _sine(d, amplitude=0.01, frequency=8.0, cycles=3)
+    t, F, u = r.time, r.channels["rod force [N]"], r.channels["stroke [m]"]
+    last = t >= t[-1] - 1.0 / 8.0
+    work = np.trapezoid(F[last], u[last])  # energy into the damper over one cycle [J] (F > 0 resists extension)
+    assert work > 0.0
+    v = r.channels["velocity [m/s]"]
+    assert F[last][np.argmax(v[last])] > 0.0 > F[last][np.argmin(v[last])]
+    other = _sine(d, amplitude=0.01, frequency=8.0, cycles=3, current=1.6)
+    assert np.array_equal(other.channels["rod force [N]"], F)
+
+
+def test_the_mono_tube_compression_chamber_is_stiffer_with_less_gas(designs):
+    """Limit case: the floating piston puts the gas in series with the oil; with a smaller gas chamber the
+    pressure rise per rod volume (gamma P / V_g) grows, so the compression force at a fast stroke grows."""
+    d = designs["mono_tube"]
+    small = d.with_overrides({"constants.V_gas0": 3.5e-5})
+    big = _sine(d, amplitude=0.02, frequency=2.0, cycles=1)
+    sm = _sine(small, amplitude=0.02, frequency=2.0, cycles=1)
+    assert sm.channels["p reserve [Pa]"].max() > big.channels["p reserve [Pa]"].max()
+
+
+@pytest.mark.parametrize("name", ["twin_tube", "mono_tube"])
+def test_probed_sparsity_covers_each_architecture(designs, name):
+    """Full finite-difference Jacobians of a passive damper at random states never show a dependency outside the
+    probed pattern (the floating piston couples the compression chamber to the gas volume)."""
+    from dampertwin.model import layout as L
+    from dampertwin.model.damper import RHS
+    from dampertwin.model.sparsity import pattern, probe_states
+    from dampertwin.simulation import model_map
+    from dampertwin.solver import Sparsity, fd_jacobian
+
+    d = designs[name]
+    cfg = L.CONFIGURATIONS["damper"]
+    p = pack(d, 0.0)
+    ex = Excitation.sine(0.005, 13.0, 0.2)
+    p[L.P.EX_T0], p[L.P.EX_DT] = ex.t0, ex.dt
+    aux = model_map(d.pq_map)
+    J = pattern(RHS["damper"], cfg, p[None], ex.array(), aux, (0.0, 0.2))
+    rng = np.random.default_rng(4321)
+    Y = probe_states(p, cfg, 100, rng)
+    n, sc = Y.shape[1], L.state_scales(cfg)
+    dense = Sparsity.dense(n)
+    for y in Y:
+        jac, ft = np.zeros((n, n)), np.zeros(n)
+        fd_jacobian(RHS["damper"], rng.uniform(0, 0.2), y / sc, sc, p, ex.array(), aux, *dense.args(), jac, ft, L.N_OUT)
+        nz = np.isfinite(jac) & (jac != 0)
+        assert not np.any(nz & ~J)
+    if name == "mono_tube":
+        assert J[L.S.P_c, L.S.V_g] and J[L.S.V_g, L.S.P_r]
+
+
+def test_the_sparsity_cache_tells_the_architectures_apart(designs):
+    """A probe cached for a twin tube must not serve a mono tube: same bytes fresh and after the other's run."""
+    from dampertwin import simulation
+
+    simulation._SPARSITY_CACHE.clear()
+    fresh = _sine(designs["mono_tube"], cycles=1)
+    simulation._SPARSITY_CACHE.clear()
+    _sine(designs["twin_tube"], cycles=1)
+    after = _sine(designs["mono_tube"], cycles=1)
+    for k, v in fresh.channels.items():
+        assert np.array_equal(v, after.channels[k]), k
+
+
+def test_an_adjuster_on_a_valve_the_architecture_lacks_is_refused():
+    doc = _doc("mono_tube")
+    doc["adjusters"] = {"compression": {"valve": "base_compression", "parameter": "F_preload", "unit": "N",
+                                        "clicks": [300.0, 200.0, 100.0], "source": "probe"}}
+    with pytest.raises(DesignError, match=r"adjusters.compression.valve: 'base_compression', but a mono_tube damper "
+                                          r"has no base valves"):
+        _loads(doc)
+    doc["adjusters"]["compression"]["valve"] = "piston_intake"  # the piston's compression valve
+    pre = next(p["value"] for p in doc["parameters"] if p["no"] == 63)
+    doc["adjusters"]["compression"]["clicks"] = [pre * 1.5, pre, pre * 0.5]
+    d = _loads(doc)
+    assert d.at_setting({"compression": 2})["piston_intake.F_preload"] == pre * 0.5
