@@ -342,7 +342,8 @@ def _add_kpi(sub) -> None:
 
 
 def _run_kpi(args) -> int:
-    """``dampertwin kpi dyno FILE``: one JSON document {file, test, runs: {label: KPIs}} (dampertwin.dyno)."""
+    """``dampertwin kpi dyno FILE``: one JSON document {file, test, setting (the record's clicker setting, or
+    null), runs: {label: KPIs}} (dampertwin.dyno.dyno_kpis)."""
     import json
 
     from .dyno import dyno_kpis
@@ -365,7 +366,7 @@ def _run_kpi(args) -> int:
         meta = {}
     test = args.test or (meta.get("protocol") if isinstance(meta.get("protocol"), str) else None) or "dyno"
     df, _ = read_record(path, test)
-    out = {"file": str(path), "test": test, "runs": {}}
+    out = {"file": str(path), "test": test, "setting": meta.get("setting"), "runs": {}}
     for name, g in runs(df):
         try:
             out["runs"][name or "record"] = dyno_kpis(g, ref, args.cycles)

@@ -258,8 +258,8 @@ def _topmount(c, seed):
 
 
 def _dyno(c, seed):
-    """Dyno test: one stepped record per current (``currents``; none: one passive run at 0 A, simulated only
-    on a design whose active-valve map covers 0 A) of ``cycles`` cycles at each peak velocity in turn."""
+    """Dyno test: one stepped record per current (``currents``; none: one passive run at 0 A, for a
+    passive architecture, which reads no current) of ``cycles`` cycles at each peak velocity in turn."""
     A, vs, wf = c["amplitude"], c["velocities"], c["waveform"]
     ex = velocity_steps(A, vs, c["cycles"], wf, c.get("rest", DYNO_REST))
     meta = {"amplitude [m]": A, "velocities [m/s]": [float(v) for v in vs], "waveform": wf, "cycles": c["cycles"]}
