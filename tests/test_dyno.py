@@ -188,6 +188,20 @@ def test_dyno_protocol_builds_stepped_runs():
 
 
 # ------------------------------------------------------------ KPIs
+@pytest.mark.parametrize("waveform", ["sine", "triangle"])
+def test_the_protocols_runs_give_one_step_per_velocity(waveform):
+    """A record of conf/test/dyno.yaml's excitation at its rate: the KPIs find each speed step, in order."""
+    doc = {**load_protocol(ROOT / "conf" / "test" / "dyno.yaml"), "waveform": waveform}
+    (run,) = build_runs(doc)
+    ex = run.excitation
+    t = np.arange(0.0, ex.t_end, 1.0 / run.rate)
+    te = ex.t0 + ex.dt * np.arange(len(ex.value))
+    v = np.interp(t, te, ex.rate)
+    st = fv_steps(pd.DataFrame({"time [s]": t, "displacement [m]": np.interp(t, te, ex.value), "force [N]": 1e3 * v}))
+    assert st["rebound velocity [m/s]"].to_numpy() == pytest.approx(doc["velocities"], rel=2e-2)
+    assert st["compression force [N]"].to_numpy() == pytest.approx(-1e3 * np.array(doc["velocities"]), rel=2e-2)
+
+
 @pytest.mark.parametrize("fs", [300.0, 5000.0])
 @pytest.mark.parametrize("waveform", ["sine", "triangle"])
 def test_fv_curve_of_a_linear_damper(fs, waveform):
