@@ -90,7 +90,8 @@ def test_300_hz_export_is_imported_at_its_measured_rate(tmp_path):
 
 def test_a_50_hz_export_is_refused(tmp_path):
     src = _export(tmp_path / "dyno.csv", _record(fs=50.0, vs=(0.05, 0.1)))
-    with pytest.raises(DataError, match=r"column 'time \[s\]': sampling rate 50 Hz .*a dyno record needs >= 100 Hz"):
+    with pytest.raises(DataError, match=r"passive.parquet \(imported from .*dyno.csv\) run 'passive': column "
+                                       r"'time \[s\]': sampling rate 50 Hz .*a dyno record needs >= 100 Hz"):
         import_measurement(src, MAPPING, tmp_path / "dyno" / "passive.parquet")
     assert not (tmp_path / "dyno" / "passive.parquet").exists()
 

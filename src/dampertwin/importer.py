@@ -368,7 +368,7 @@ def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike
     if "time stamps" in res.attrs:
         meta["time stamps"] = res.attrs["time stamps"]
     # the record passes the measurement reader's checks before anything is written (an earlier file stays)
-    io.check_record(res, meta, str(out), protocol)
+    io.check_record(res, meta, f"{out} (imported from {src})", protocol)
     io.write_frame(out, res, meta)
     return out
 
