@@ -23,7 +23,7 @@ from .workflow import Problem, record_pool, run, verdict_document
 
 CONFIGURATIONS = {"flowbench": "valve", "compliance": "damper", "curving": "damper", "monosine": "module", "random": "module",
                   "training": None, "verification": None, "thermal": "damper",
-                  "friction": "damper"}
+                  "friction": "damper", "dyno": "damper"}
 PROFILES = ("ci", "full")
 
 
@@ -110,7 +110,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
                     notes.append(f"{f}: variant {case} does not apply to the design ({e}); skipped")
                     continue
                 variants[case] = v
-            for name, g in runs(df):
+            for name, g in _segments(test, df, f, design):
                 if cfg_name == "valve" and str(name) not in proto.get("valves", {}):
                     raise DiscrepancyError(f"{f}: " + ("no 'run' column naming the valve" if name is None else
                                                        f"run {name!r} is not a flow-bench valve")
@@ -133,6 +133,25 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         raise DiscrepancyError(f"{measured}: no record of the tests this profile uses ({wanted}); present: "
                                + ", ".join(f"{k}/{{{','.join(f.stem for f in v)}}}" for k, v in present.items()))
     return units, variants, notes
+
+
+def _segments(test: str, df, f: Path, design) -> list:
+    """The runs of a record; a dyno run cut into its speed steps (features.dyno_segments), with the current
+    a semi-active design needs (a dyno export of a passive damper has none: 0 A, not read)."""
+    if test != "dyno":
+        return runs(df)
+    out = []
+    for name, g in runs(df):
+        if "current [A]" not in g:
+            if design.pq_map is not None:
+                raise DiscrepancyError(f"{f}: a dyno record of the semi-active design {design.name!r} needs a "
+                                       f"'current [A]' column")
+            g = g.assign(**{"current [A]": 0.0})
+        try:
+            out += F.dyno_segments(str(name if name is not None else "dyno"), g)
+        except ValueError as e:
+            raise DiscrepancyError(f"{f}: {e}") from None
+    return out
 
 
 def _flow_input_cutoff(conf: Path) -> float:
