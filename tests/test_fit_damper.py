@@ -97,3 +97,22 @@ def test_a_record_naming_a_setting_the_design_lacks_is_refused(tmp_path):
         from dampertwin.cli_fit_files import fit_damper
 
         fit_damper([bad], design=TWIN, population=4, generations=1)
+
+
+def test_bleeds_are_fitted_unless_a_clicker_moves_them_and_a_record_without_setting_is_flagged(tmp_path):
+    from dampertwin.design.adjusters import without_adjusters
+
+    free = without_adjusters(load(TWIN))
+    keys = [i["key"] for i in default_items(free)]
+    assert "piston_rebound.A_bleed" in keys and "base_compression.A_bleed" in keys
+    assert "piston_intake.A_bleed" not in keys  # an intake disc has no bleed
+    assert "sensor.force_offset" in keys  # the dyno's tared zero
+    rec = _dyno_record(load(TWIN), {"rebound": 3, "compression": 2}, tmp_path / "r.parquet", 1)
+    from dampertwin.io import read_table
+
+    df, meta = read_table(rec)
+    write_frame(rec, df, {k: v for k, v in meta.items() if k != "setting"})
+    from dampertwin.cli_fit_files import fit_damper
+
+    res = fit_damper([rec], design=TWIN, population=4, generations=1)
+    assert any("names no clicker setting" in f for f in res["flags"])

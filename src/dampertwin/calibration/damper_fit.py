@@ -21,15 +21,19 @@ from ..design.adjusters import design_for_record
 from ..design.architecture import UNUSED_NUMBERS
 from ..design.schema import BY_NUMBER, VALVES
 from ..io import runs
-from .approach1 import Channel, integral_abs_error, record_input
+from .approach1 import Channel, force_chain_nominal, integral_abs_error, record_input, through_sensor
 from .component_fits import RecordProblem, _fit_model, search_specs
 from .ga import FitError, GASettings
 
 # default search space: per valve of the architecture its preload and spring coefficient a (eq. 4.19), the
-# emulsion's gas content; windows are factors on the design's value (clipped to its calibration bounds)
+# emulsion's gas content (windows: factors on the design's value, clipped to its calibration bounds) and the
+# load cell's zero (OFFSET)
 VALVE_WINDOWS = {"F_preload": ([0.5, 2.0], "lin"), "a": ([0.3, 3.0], "log")}
+BLEED_WINDOW = ([0.2, 5.0], "log")  # a shim stack's bleed area (eq. 4.21), unless a clicker moves it
 GAS_ITEMS = ({"key": "oil.chi", "window": [0.2, 5.0], "scale": "log"},)
-FORCE = Channel(("rod force [N]",), lambda c, nuis: c["rod force [N]"])
+FORCE_COLUMN = "rod force [N]"
+FORCE = Channel((FORCE_COLUMN,), lambda c, nuis: c[FORCE_COLUMN])  # (plots, reports: the problem's channel)
+OFFSET = "sensor.force_offset"  # the load cell's zero [N]: a dyno tares it, often with the gas force included
 
 
 def present_valves(design: Design) -> tuple[str, ...]:
@@ -42,9 +46,19 @@ def default_items(design: Design) -> list[dict]:
     """The default search space of a damper fit (module docstring), without the parameters a clicker moves
     (their values are the records' settings)."""
     moved = {a.key for a in design.adjusters.values()}
+    windows = dict(VALVE_WINDOWS, A_bleed=BLEED_WINDOW)
     items = [{"key": f"{v}.{n}", "window": w, "scale": s} for v in present_valves(design)
-             for n, (w, s) in VALVE_WINDOWS.items() if f"{v}.{n}" not in moved]
-    return items + [dict(i) for i in GAS_ITEMS]
+             for n, (w, s) in windows.items() if f"{v}.{n}" not in moved
+             and (n != "A_bleed" or design.group(v).get("A_bleed", 0.0) > 0)]  # intake discs have no bleed
+    return items + [dict(i) for i in GAS_ITEMS] + [{"key": OFFSET, "bounds": [-offset_range(design),
+                                                                           offset_range(design)]}]
+
+
+def offset_range(design: Design) -> float:
+    """Half-width [N] of the load cell's zero searched: three times the static gas force (P_0 - P_atm) A_rod,
+    at least 100 N (a dyno that tared the load cell on the mounted damper took the gas force out)."""
+    a_rod = np.pi * design["geometry.D_R"] ** 2 / 4.0
+    return max(100.0, 3.0 * (design["oil.P_0"] - design.constant("P_atm")) * a_rod)
 
 
 class DamperProblem(RecordProblem):
@@ -55,16 +69,18 @@ class DamperProblem(RecordProblem):
         from ..simulation import simulate_batch
 
         out = {}
+        nuis = {k: np.array([r[k] for r in rows], float) for k in (rows[0] if rows else {}) if k.startswith("sensor.")}
         for fi, (_, cases) in enumerate(self.files):
             if which is not None and fi not in which:
                 continue
             out[fi] = []
             for t, meas, ex, extra in cases:
-                designs = [extra["design"].with_overrides(r) for r in rows]
-                _, ch, status = simulate_batch(designs, ex, "damper", rate=1.0 / (t[1] - t[0]),
-                                               duration=t[-1] - t[0], channels=list(FORCE.sources),
-                                               current=extra["current"], **self.sim_kw)
-                sim = np.asarray(FORCE(ch), float)[:, : len(t)]
+                designs = [extra["design"].with_overrides({k: v for k, v in r.items() if not k.startswith("sensor.")})
+                           for r in rows]
+                fs = 1.0 / (t[1] - t[0])
+                _, ch, status = simulate_batch(designs, ex, "damper", rate=fs, duration=t[-1] - t[0],
+                                               channels=[FORCE_COLUMN], current=extra["current"], **self.sim_kw)
+                sim = np.asarray(through_sensor(FORCE_COLUMN, None, fs)(ch, nuis), float)[:, : len(t)]
                 sim[status != 0] = np.nan
                 out[fi].append(sim)
         return out
@@ -109,7 +125,7 @@ def fit_damper_records(design: Design, fitted: list, predicted: list, items=None
     if not fitted:
         raise FitError("a damper fit needs at least one record to fit")
     items = items or default_items(design)
-    specs = search_specs(design, items, "", where)
+    specs = search_specs(design, items, "", where, force_chain_nominal(None))
     moved = {a.key for a in design.adjusters.values()} & {s.key for s in specs}
     if moved:
         raise FitError(f"{where}: {', '.join(sorted(moved))} is moved by a clicker (adjusters:); its values are the "
@@ -117,11 +133,14 @@ def fit_damper_records(design: Design, fitted: list, predicted: list, items=None
     per_file = [(str(name), _cases(design, name, f, meta, cutoff), meta) for name, f, meta in fitted]
     files = [(" + ".join(n for n, _, _ in per_file), [c for _, cases, _ in per_file for c in cases])]
     files += [(str(name), _cases(design, name, f, meta, cutoff)) for name, f, meta in predicted]
-    problem = DamperProblem(design, "damper", FORCE, files, {})
+    problem = DamperProblem(design, "damper", FORCE, files, {}, force_chain_nominal(None))
     result, problem, sims = _fit_model(problem, specs, "damper", "damper", settings, seed,
                                        {"objective_name": "eq. 6.2 int |F_meas - F_sim| dt [N*s], summed over the "
                                                           "fitted records", "architecture": design.architecture})
     result["files"] = _per_file(per_file, predicted, problem, sims)
+    if design.adjusters:
+        result["flags"] += [f"{name}: the record names no clicker setting; simulated at the design's "
+                            f"{design.setting}" for name, _, meta in [*fitted, *predicted] if not meta.get("setting")]
     return result, problem, sims
 
 
