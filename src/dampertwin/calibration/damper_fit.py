@@ -21,7 +21,7 @@ from ..design.adjusters import design_for_record
 from ..design.architecture import UNUSED_NUMBERS
 from ..design.schema import BY_NUMBER, VALVES
 from ..io import runs
-from .approach1 import Channel, force_chain_nominal, integral_abs_error, record_input, through_sensor
+from .approach1 import Channel, force_chain_nominal, record_input, through_sensor
 from .component_fits import RecordProblem, _fit_model, search_specs
 from .ga import FitError, GASettings
 
@@ -62,8 +62,9 @@ def offset_range(design: Design) -> float:
 
 
 class DamperProblem(RecordProblem):
-    """Dyno records -> simulations of a design population, each record at its own setting (``extra['design']``);
-    file 0 holds every fitted record, the others are predicted files."""
+    """Dyno records -> simulations of a design population, each record at its own setting (``extra['design']``)
+    and through the load cell's zero (``sensor.force_offset``); file 0 holds every fitted record (the base
+    class's objective sums over them), the others are predicted files."""
 
     def simulate(self, rows: list[dict], which=None):
         from ..simulation import simulate_batch
@@ -84,16 +85,6 @@ class DamperProblem(RecordProblem):
                 sim[status != 0] = np.nan
                 out[fi].append(sim)
         return out
-
-    def objective(self, keys):
-        def f(X):
-            sims = self.simulate([dict(zip(keys, row)) for row in X], which={0})
-            J = np.zeros(len(X))
-            for (t, meas, _, _), sim in zip(self.files[0][1], sims[0]):
-                J += np.array([integral_abs_error(t, meas, s) for s in sim])
-            return J
-
-        return f
 
 
 def _current(design: Design, g, name: str) -> float:
