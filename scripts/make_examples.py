@@ -7,7 +7,11 @@ examples, which the test suite runs). Deterministic: same code, same bytes.
   LuGre parameters (F_c 20 N, F_s 35 N, k_b 4e5 N/m, s2 150 N*s/m) + 0.5 N noise;
 - rig_monosine.csv: a rig export (ms, mm, kN, g, mA; ';' separated, decimal
   comma) of the baseline design's 13 Hz mono-sine at 1.6 A, simulated, with
-  the mapping examples/mapping.yaml that imports it.
+  the mapping examples/mapping.yaml that imports it;
+- dyno_export.csv: a damper-dyno export (date-time stamps in ms, force [N],
+  displacement [mm], temperature [degC]; 300 Hz, ';' separated, decimal
+  comma) of a made-up passive damper (below), imported by
+  examples/dyno_mapping.yaml.
 """
 
 from __future__ import annotations
@@ -48,7 +52,42 @@ def rig_monosine(path: Path) -> None:
     rig.round(6).to_csv(path, sep=";", decimal=",", index=False, lineterminator="\n")
 
 
+# the made-up passive damper of dyno_export.csv: per direction a low-speed slope c0 [N*s/m] up to the knee
+# v_k [m/s], then c1; plus Coulomb friction [N], a force lag [s] (loop area) and load-cell noise [N]
+DYNO_DAMPER = {"rebound": (4000.0, 1200.0), "compression": (2000.0, 600.0), "knee [m/s]": 0.08,
+               "friction [N]": 20.0, "lag [s]": 0.002, "noise [N]": 2.0}
+
+
+def dyno_export(path: Path) -> None:
+    from dampertwin.protocols.signals import velocity_steps
+
+    fs, A, vs = 300.0, 0.0125, [0.05, 0.1, 0.2, 0.4]
+    ex = velocity_steps(A, vs, 4, "sine")
+    t = np.arange(0.0, ex.t_end, 1.0 / fs)
+    te = ex.t0 + ex.dt * np.arange(len(ex.value))
+    x = np.interp(t, te, ex.value)
+    v = np.interp(t - DYNO_DAMPER["lag [s]"], te, ex.rate)
+    vk = DYNO_DAMPER["knee [m/s]"]
+    (r0, r1), (c0, c1) = DYNO_DAMPER["rebound"], DYNO_DAMPER["compression"]
+    sp = np.abs(v)
+    mag = np.where(v > 0, np.where(sp < vk, r0 * sp, r0 * vk + r1 * (sp - vk)),
+                   np.where(sp < vk, c0 * sp, c0 * vk + c1 * (sp - vk)))
+    rng = np.random.default_rng(38)
+    F = np.sign(v) * (mag + DYNO_DAMPER["friction [N]"] * np.minimum(sp / 0.005, 1.0))
+    F = F + rng.normal(0.0, DYNO_DAMPER["noise [N]"], len(t))
+    P = np.abs(F * np.gradient(x, t))  # dissipated power [W] heats ~0.5 kg of oil and steel (~1 kJ/K) by its energy
+    temp = 24.0 + np.cumsum(P) / fs / 1000.0 + rng.normal(0.0, 0.05, len(t))
+    stamps = pd.Timestamp("2024-05-13 14:02:11.250") + pd.to_timedelta(np.round(t * 1e3), unit="ms")
+    out = pd.DataFrame({"Zeitstempel": [s.strftime("%d.%m.%Y %H:%M:%S") + f",{s.microsecond // 1000:03d}" for s in stamps],
+                        "Kraft": F.round(1), "Weg": (x * 1e3).round(3), "Temperatur": temp.round(2)})
+    with open(path, "w") as f:
+        f.write(f"# SYNTHETIC dyno export made by scripts/make_examples.py (a made-up passive damper: "
+                f"{DYNO_DAMPER}); not a measurement\n")
+        out.to_csv(f, sep=";", decimal=",", index=False, lineterminator="\n")
+
+
 if __name__ == "__main__":
     friction(OUT / "friction.parquet", seed=1, f1=0.5, duration=4.0)
     friction(OUT / "friction_2.parquet", seed=2, f1=0.8, duration=2.0)
     rig_monosine(OUT / "rig_monosine.csv")
+    dyno_export(OUT / "dyno_export.csv")

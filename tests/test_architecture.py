@@ -72,7 +72,7 @@ def test_unknown_architecture_and_missing_parts_are_named():
 
 
 @pytest.mark.parametrize("name,effect", [("twin_tube", "active_valve_lag"), ("mono_tube", "active_valve_driver"),
-                                         ("mono_tube", "oil_thermal")])
+                                         ("mono_tube", "valve_friction_current")])
 def test_effects_a_passive_damper_has_no_part_for_are_refused(name, effect):
     doc = _doc(name)
     doc["effects"][effect] = True
@@ -209,3 +209,91 @@ def test_an_adjuster_on_a_valve_the_architecture_lacks_is_refused():
     doc["adjusters"]["compression"]["clicks"] = [pre * 1.5, pre, pre * 0.5]
     d = _loads(doc)
     assert d.at_setting({"compression": 2})["piston_intake.F_preload"] == pre * 0.5
+
+
+def test_simulate_runs_only_what_the_architecture_has(designs, tmp_path):
+    """`dampertwin simulate` on a mono tube: no flow-bench run of its absent base valves; a passive damper runs
+    each input once (the current is not read) and its record says so."""
+    import pandas as pd
+
+    from dampertwin import cli
+    from dampertwin.io import read_meta
+
+    assert cli.main(["simulate", str(DESIGNS / "mono_tube.yaml"), "--test", "flowbench", "--out", str(tmp_path)]) == 0
+    df = pd.read_parquet(tmp_path / "flowbench.parquet")
+    assert sorted(df["run"].unique()) == ["piston_intake", "piston_rebound"]
+    assert read_meta(tmp_path / "flowbench.parquet")["current_read"] is False
+    from dampertwin.protocols import build_runs, load_protocol
+    from dampertwin.simulate_test import runs_for_design
+
+    runs = build_runs(load_protocol(ROOT / "conf" / "test" / "curving.yaml"))
+    kept = runs_for_design(designs["twin_tube"], runs, "curving")
+    assert len(kept) == len({r.excitation.array().tobytes() for r in runs}) < len(runs)
+    assert runs_for_design(designs["baseline"], runs, "curving") == runs
+
+
+def test_mono_tube_gas_heating_moves_the_compression_chamber_with_the_gas_law(designs):
+    """oil_thermal in a mono tube: at rest with the oil 20 K above the ambient (cooling), the compression
+    chamber's pressure rate equals the gas law's total derivative, d/dt [P0 (V0/V_g)^gamma T/T0] =
+    -gamma P / V_g dV_g/dt + P dT/dt / T; without the heating term the chamber would not follow its gas."""
+    from dampertwin.model import layout as L
+    from dampertwin.model.damper import RHS_BY_CFG
+    from dampertwin.simulation import model_map
+
+    doc = _doc("mono_tube")
+    doc["effects"]["oil_thermal"] = True
+    d = _loads(doc)
+    p = pack(d, 0.0)
+    ex = Excitation.sine(0.0, 1.0, 0.1)  # no motion
+    p[L.P.EX_T0], p[L.P.EX_DT] = ex.t0, ex.dt
+    cfg = L.variant(L.CFG_DAMPER, p)
+    assert cfg == L.CFG_DAMPER_X
+    y = L.initial_state(p, cfg)
+    T = y[L.EB_DAMPER + L.EX.T_oil] = d["oil.T"] + 20.0
+    dy, out = np.zeros_like(y), np.zeros(L.N_OUT)
+    RHS_BY_CFG[cfg](0.05, y, p, ex.array(), model_map(None), dy, out)
+    dT, Vg, dVg = dy[L.EB_DAMPER + L.EX.T_oil], y[L.S.V_g], dy[L.S.V_g]
+    P = out[L.O.P_RES]
+    assert dT < 0 and P == pytest.approx(d["oil.P_0"] * T / d["oil.T"])
+    assert out[L.O.P_C] == P
+    law = -d["oil.Gamma"] * P / Vg * dVg + P * dT / T
+    assert dy[L.S.P_c] == pytest.approx(law, rel=1e-9, abs=1e-6)
+    assert abs(dy[L.S.P_c]) > 1.0  # the cooling gas does move the chamber [Pa/s]
+
+
+def test_the_discrepancy_candidates_of_a_passive_damper_leave_out_the_active_valve(designs):
+    from dampertwin.design.architecture import ACTIVE_VALVE_EFFECTS
+    from dampertwin.discrepancy.entry import load_config
+    from dampertwin.discrepancy.workflow import catalogue
+
+    cfg = load_config(ROOT / "conf")
+    base = {c.name for c in catalogue(designs["baseline"], cfg)}
+    twin = {c.name for c in catalogue(designs["twin_tube"], cfg)}
+    assert set(ACTIVE_VALVE_EFFECTS) & base and not set(ACTIVE_VALVE_EFFECTS) & twin
+    assert "oil_thermal" in twin and "oil_thermal" in {c.name for c in catalogue(designs["mono_tube"], cfg)}
+
+
+@pytest.mark.slow
+def test_the_discrepancy_workflow_runs_on_a_twin_tube(designs, tmp_path):
+    """A twin tube's own simulated records (compliance, curving) through `dampertwin discrepancy`: verdict none
+    (the records are the model's: nothing is missing), the augmented design loads without a P/Q map."""
+    import pandas as pd
+
+    from dampertwin import cli
+    from dampertwin.io import write_frame
+
+    meas = tmp_path / "measured"
+    for test in ("compliance", "curving"):
+        assert cli.main(["simulate", str(DESIGNS / "twin_tube.yaml"), "--test", test, "--out", str(tmp_path / test)]) == 0
+        df = pd.read_parquet(tmp_path / test / f"{test}.parquet")
+        rec = pd.DataFrame({"time [s]": df["time [s]"], "displacement [m]": df["displacement [m]"],
+                            "force [N]": df["rod force [N]"], "current [A]": 0.0, "run": df["run"]})
+        write_frame(meas / test / "baseline.parquet", rec, {"synthetic": True, "protocol": test})
+    out = tmp_path / "out"
+    assert cli.main(["discrepancy", "--design", str(DESIGNS / "twin_tube.yaml"), "--measured", str(meas), "--out",
+                     str(out), "--profile", "ci", "--workers", "1"]) == 0
+    import json
+
+    v = json.loads((out / "verdict.json").read_text())
+    assert v["verdict"] == "none"
+    assert load(out / "design.yaml").architecture == "twin_tube"

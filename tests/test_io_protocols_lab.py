@@ -137,7 +137,7 @@ def test_atomic_write_leaves_no_partial_file(tmp_path, monkeypatch):
 def test_all_shipped_protocols_validate_and_build():
     P = load_all(CONF / "test")
     assert set(P) == {"flowbench", "compliance", "topmount", "curving", "monosine", "random", "training",
-                      "verification", "monosine16", "thermal", "friction", "module_topmount"}
+                      "verification", "monosine16", "thermal", "friction", "module_topmount", "dyno"}
     runs = {k: build_runs(v, seed=5) for k, v in P.items()}
     fb = {r.bench_valve: r for r in runs["flowbench"]}
     assert fb["piston_rebound"].excitation.value.max() == pytest.approx(80 / 60000)

@@ -1,4 +1,4 @@
-"""Command line: ``dampertwin design show|check``, ``simulate``, ``plot``, ``import``, ``fit``, ``lab``,
+"""Command line: ``dampertwin design show|check``, ``simulate``, ``plot``, ``import``, ``kpi``, ``fit``, ``lab``,
 ``discrepancy``, ``cluster``, ``sweep`` and ``--version``."""
 
 from __future__ import annotations
@@ -109,6 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("--out", default="results/plots", help="output folder (PNG files go to OUT/CASE/)")
     plot.add_argument("--conf", default="conf", help="configuration folder")
     _add_import_fit(sub)
+    _add_kpi(sub)
     lab = sub.add_parser("lab", help="virtual laboratory: run a hidden-sample file through the standard tests "
                          "(SYNTHETIC data)")
     lab.add_argument("--sample", required=True, help="hidden-sample YAML (see the virtual laboratory in the docs)")
@@ -159,6 +160,8 @@ def _main(argv: list[str]) -> int:
             return _run_simulate(args)
         if args.cmd in ("import", "fit"):
             return _run_import_fit(args)
+    if args.cmd == "kpi":
+        return _run_kpi(args)
     if args.cmd == "cluster":
         return _run_cluster(args)
     if args.cmd == "plot":
@@ -277,9 +280,12 @@ def _add_import_fit(sub) -> None:
     imp.add_argument("--map", required=True, dest="mapping", help="column mapping YAML (quantity + unit per column)")
     imp.add_argument("--out", required=True, help="output Parquet, e.g. data/own/monosine/baseline_1.6.parquet")
     imp.add_argument("--protocol", help="test schema to check (default: the mapping's or the output folder name)")
-    fit = sub.add_parser("fit", help="fit one submodel on a bench record: valve | compliance | topmount | friction")
-    fit.add_argument("submodel", choices=("valve", "compliance", "topmount", "friction"))
-    fit.add_argument("--data", required=True, help="the record to fit (Parquet or CSV, project schema)")
+    fit = sub.add_parser("fit", help="fit one submodel on a bench record: valve | compliance | topmount | friction; "
+                                     "or the whole damper on dyno records: damper")
+    fit.add_argument("submodel", choices=("valve", "compliance", "topmount", "friction", "damper"))
+    fit.add_argument("--data", required=True, help="the record to fit (Parquet or CSV, project schema); damper: "
+                                                   "a comma-separated list a.parquet,b.parquet (each at the clicker "
+                                                   "setting its metadata names)")
     fit.add_argument("--design", default=str(DEFAULT_DESIGN), help="design YAML (start values, constants)")
     fit.add_argument("--out", required=True, help="output folder: fit.json and PNG plots")
     fit.add_argument("--predict", nargs="*", default=[], help="records only predicted (NRMSE reported)")
@@ -318,6 +324,55 @@ def _run_import_fit(args) -> int:
     for f in flags:
         print(f"dampertwin fit: warning: {f}", file=sys.stderr)
     print(path)
+    return 0
+
+
+def _add_kpi(sub) -> None:
+    kpi = sub.add_parser("kpi", help="KPIs of a measured record as JSON on stdout (dyno: F-v points per speed step "
+                                     "and direction, loop area, oil temperature at start and end)")
+    kpi.add_argument("kind", choices=("dyno",), help="the record's test type")
+    kpi.add_argument("file", help="the record (Parquet or CSV, project schema; e.g. written by dampertwin import)")
+    kpi.add_argument("--test", default=None, help="the test whose checks the record must pass (default: the test "
+                                                  "its metadata names, else dyno)")
+    kpi.add_argument("--velocities", default=None, metavar="V1,V2,...",
+                     help="reference peak speeds [m/s]: the force at each per direction, interpolated along the "
+                          "measured F-v points (null outside them)")
+    kpi.add_argument("--cycles", type=int, default=None, metavar="N",
+                     help="average the last N half-strokes of each direction per step (default: all but the first)")
+
+
+def _run_kpi(args) -> int:
+    """``dampertwin kpi dyno FILE``: one JSON document {file, test, setting (the record's clicker setting, or
+    null), runs: {label: KPIs}} (dampertwin.dyno.dyno_kpis)."""
+    import json
+
+    from .dyno import dyno_kpis
+    from .io import read_meta, read_record, runs
+
+    ref = None
+    if args.velocities is not None:
+        try:
+            ref = [float(v) for v in args.velocities.split(",") if v.strip()]
+        except ValueError:
+            raise UserError(f"--velocities {args.velocities!r}: expected comma-separated speeds in m/s") from None
+        if not ref or not all(v > 0 and v < float("inf") for v in ref):
+            raise UserError(f"--velocities {args.velocities!r}: expected positive finite speeds in m/s")
+    if args.cycles is not None and args.cycles < 1:
+        raise UserError(f"--cycles {args.cycles}: expected an integer >= 1")
+    path = Path(args.file)
+    try:
+        meta = read_meta(path) if path.suffix == ".parquet" and path.is_file() else {}
+    except Exception:  # unreadable: read_record names the file
+        meta = {}
+    test = args.test or (meta.get("protocol") if isinstance(meta.get("protocol"), str) else None) or "dyno"
+    df, _ = read_record(path, test)
+    out = {"file": str(path), "test": test, "setting": meta.get("setting"), "runs": {}}
+    for name, g in runs(df):
+        try:
+            out["runs"][name or "record"] = dyno_kpis(g, ref, args.cycles)
+        except ValueError as e:
+            raise UserError(f"{path}" + (f" run {name!r}" if name else "") + f": {e}") from None
+    print(json.dumps(out, indent=1))
     return 0
 
 

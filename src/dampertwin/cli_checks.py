@@ -52,7 +52,8 @@ def check_current(value, design_path) -> None:
 
 # the test whose records each `fit` submodel reads (friction: also a device record without protocol)
 FIT_PROTOCOLS = {"valve": ("flowbench",), "compliance": ("compliance",), "topmount": ("topmount",),
-                 "friction": ("friction", None)}
+                 "friction": ("friction", None),
+                 "damper": ("dyno", "curving", "compliance", "thermal", None)}  # damper-level: displacement in, force out
 
 
 def check_fit_records(submodel: str, paths) -> None:
@@ -89,7 +90,8 @@ def check_args(args) -> None:
 
         if getattr(args, "valve", None) is not None and args.valve not in VALVES:
             raise ArgumentError(f"--valve {args.valve!r}: expected one of {', '.join(VALVES)}")
-        check_fit_records(args.submodel, [args.data, *(args.predict or [])])
+        data = args.data.split(",") if args.submodel == "damper" else [args.data]
+        check_fit_records(args.submodel, [*data, *(args.predict or [])])
         if getattr(args, "bounds", None):  # readable YAML without duplicate keys, a mapping
             from .design import yaml_load_file
 

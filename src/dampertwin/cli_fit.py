@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .design import yaml_load
 from .calibration.ga import FitError
-from .cli_fit_files import fit_compliance, fit_friction, fit_topmount, fit_valve
+from .cli_fit_files import fit_compliance, fit_damper, fit_friction, fit_topmount, fit_valve
 
 
 def parse_param_args(items: list[str]) -> list[dict]:
@@ -76,6 +76,9 @@ def run_fit_cli(args) -> tuple[Path, list[str]]:
             raise FitError("--profile sets GA and polish budgets: valve, compliance and topmount fits only")
         prof = _profile(args.profile)
         section = {"valve": "valves"}.get(args.submodel, args.submodel)
+        if section not in prof["ga"]:
+            raise FitError(f"--profile {args.profile}: the profile has no GA budget for a {args.submodel} fit; "
+                           f"give --population / --generations")
         cfg.setdefault("ga", prof["ga"][section])
         cfg.setdefault("polish", prof.get("polish"))
     items = _merge_items(cfg.get("parameters"), parse_param_args(args.param)) or None
@@ -96,6 +99,10 @@ def run_fit_cli(args) -> tuple[Path, list[str]]:
         if not valve:
             raise FitError("a valve fit needs --valve (or 'valve:' in the bounds file)")
         res = fit_valve(args.data, valve, **kw, **ga)
+    elif args.submodel == "damper":
+        if args.current is not None:
+            raise FitError("--current: a damper fit takes each record's current (a passive design reads none)")
+        res = fit_damper([p for p in args.data.split(",") if p], **kw, **ga)
     elif args.submodel == "compliance":
         res = fit_compliance(args.data, current=args.current, **kw, **ga)
     else:

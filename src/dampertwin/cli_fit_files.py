@@ -227,4 +227,31 @@ def fit_friction(data, *, design: Design | str | os.PathLike | None = None, boun
     return result
 
 
-__all__ = ["read_fit_record", "fit_valve", "fit_compliance", "fit_topmount", "fit_friction"]
+
+
+def fit_damper(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0, population=None,
+               generations=None, scheduler=None) -> dict:
+    """Fit the valves' and the gas's parameters on damper / dyno records (``data``: one path or a list, each
+    simulated at the clicker setting its metadata names; calibration.damper_fit), predict ``predict``."""
+    from .calibration.damper_fit import fit_damper_records
+    from .io import read_record
+
+    d, cfg = _load(design), dict(config or {})
+    paths = [data] if isinstance(data, (str, os.PathLike)) else list(data)
+
+    def read(p):
+        frame, meta = read_record(Path(p), None, require=("time", "force", "displacement"))
+        return str(p), frame, meta
+
+    result, problem, sims = fit_damper_records(
+        d, [read(p) for p in paths], [read(p) for p in predict], bounds or cfg.get("parameters"),
+        settings=cf.ga_settings(cfg, population, generations), seed=seed,
+        cutoff=float(cfg.get("input_cutoff", 1000.0)), where=cfg.get("_where", "damper search space"),
+        scheduler=scheduler)
+    _with_shas(result, out)
+    if out is not None:
+        series_plots(Path(out), problem, sims, "rod force [N]", "damper")
+    return result
+
+
+__all__ = ["read_fit_record", "fit_valve", "fit_compliance", "fit_topmount", "fit_friction", "fit_damper"]

@@ -17,6 +17,19 @@ its unit::
     csv: {sep: ";", decimal: ","} # optional: pandas.read_csv keywords
     time_offset: true             # optional: shift time to start at 0
 
+A dyno export's date-time stamps (ISO 8601 ``2024-05-13 14:02:11.250``,
+``13.05.2024 14:02:11,250``, a time of day ``14:02:11.250``; or any strptime
+``format:``) become seconds from the first sample::
+
+      Datum: {quantity: time, unit: datetime}            # or {..., format: "%d/%m/%Y %H:%M:%S.%f"}
+
+The stamps must increase; they may lie off a uniform clock by half their
+resolution (their rounding, e.g. 0.5 ms for stamps in ms) plus STAMP_JITTER
+sampling intervals; the time written is that uniform clock (least-squares
+fit through the stamps: the rate is measured, never assumed), the stamps'
+resolution, deviation and rate go to the metadata (``time stamps``).
+``synthetic: true`` labels a made-up record (the example files) as such.
+
 A JSON source holding a matrix (one row per sample) names its columns::
 
     json: {matrix: data, columns: [Zeit, Weg, Kraft]}   # key of the matrix, its column names
@@ -67,6 +80,9 @@ UNIT_TABLE: dict[str, tuple[str, float, float]] = {
 ALIASES = {"µm": "um", "μm": "um", "µs": "us", "m/s²": "m/s^2", "°C": "degC", "C": "degC", "°F": "degF",
            "L/min": "l/min", "lb": "lbf", "kips": "kip", "ips": "in/s", "lpm": "l/min", "L/s": "l/s", "ccm/s": "cm^3/s", "G": "g"}
 P_ATM = 101325.0  # [Pa] added to gauge pressures
+# date-time formats tried in turn (after a decimal comma becomes a point) when the mapping gives no format:
+DATETIME_FORMATS = ("ISO8601", "%d.%m.%Y %H:%M:%S.%f", "%d.%m.%Y %H:%M:%S", "%H:%M:%S.%f", "%H:%M:%S")
+STAMP_JITTER = 0.1  # [sampling intervals] clock jitter of date-time stamps tolerated on top of half their resolution
 
 
 class MappingError(UserError):
@@ -149,7 +165,7 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
     cols = mapping.get("columns")
     if not isinstance(cols, dict) or not cols:
         raise MappingError(f"{where}: mapping needs a non-empty 'columns:' section")
-    out = {}
+    out, stamps = {}, None
     for name, spec in cols.items():
         label = f"{where}: column {name!r}"
         if name not in df.columns:
@@ -164,6 +180,15 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
             continue
         if "unit" not in spec:
             raise MappingError(f"{label}: mapping entry needs 'unit'")
+        if spec["unit"] == "datetime" or "format" in spec:
+            if q != "time" or spec["unit"] != "datetime":
+                raise MappingError(f"{label}: unit 'datetime' (and format:) only applies to quantity time, with "
+                                   f"unit: datetime; got quantity {q!r}, unit {spec['unit']!r}")
+            if "time [s]" in out:
+                raise MappingError(f"{label}: quantity 'time' mapped twice")
+            out["time [s]"], stamps = parse_stamps(df[name], label, spec.get("format"))
+            stamp_label = label
+            continue
         raw = pd.to_numeric(df[name], errors="coerce")
         if raw.isna().any():
             bad = df[name][raw.isna()].iloc[0]
@@ -194,6 +219,9 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
         if not isinstance(mapping["run"], str) or not mapping["run"]:
             raise MappingError(f"{where}: run: {mapping['run']!r}; expected the record's run label (e.g. I1.6)")
         res["run"] = mapping["run"]
+    if stamps is not None:  # the uniform clock through the stamps, per record
+        res["time [s]"], stamp_info = regrid_stamps(res["time [s]"].to_numpy(), stamps,
+                                                    res["run"].to_numpy() if "run" in res else None, stamp_label)
     if mapping.get("time_offset") and "time [s]" in res:
         if "run" in res:
             res["time [s]"] = res["time [s]"] - res.groupby("run")["time [s]"].transform("first")
@@ -201,7 +229,84 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
             res["time [s]"] = res["time [s]"] - res["time [s]"].iloc[0]
     if "run" in res:  # the project's files carry 'run' last
         res = res[[c for c in res.columns if c != "run"] + ["run"]]
+    if stamps is not None:
+        res.attrs["time stamps"] = stamp_info
     return res
+
+
+def parse_stamps(values: pd.Series, label: str, fmt: str | None = None) -> tuple[np.ndarray, dict]:
+    """Date-time stamps -> seconds from the first one [s] (float) and
+    ``{strings, resolution [s], format}``: the resolution is the largest
+    power of ten of seconds (1 s .. 1 ns) every stamp is a multiple of.
+    Tries ``fmt`` (strptime, on the stamps as written) or DATETIME_FORMATS;
+    MappingError naming ``label`` when no format reads every stamp."""
+    raw = values.astype(str).str.strip()
+    if fmt is not None and not isinstance(fmt, str):
+        raise MappingError(f"{label}: format: {fmt!r}; expected a strptime format such as '%d.%m.%Y %H:%M:%S,%f'")
+    tries = [(fmt, raw)] if fmt is not None else [(f, raw.str.replace(",", ".", regex=False)) for f in DATETIME_FORMATS]
+    best = None
+    for f, ss in tries:
+        try:
+            ts = pd.to_datetime(ss, format=f, utc=True, errors="coerce")
+        except (ValueError, TypeError):  # a format pandas cannot use at all
+            continue
+        bad = int(ts.isna().sum())
+        if bad == 0:
+            d = ts - ts.iloc[0]
+            ns = d.dt.as_unit("ns").astype("int64").to_numpy()
+            k = next(k for k in range(9, -1, -1) if np.all(ns % 10**k == 0))
+            return d.dt.total_seconds().to_numpy(float), {"strings": raw.to_numpy(), "resolution [s]": 10.0**(k - 9),
+                                                          "format": f}
+        if best is None or bad < best[0]:
+            best = (bad, raw[ts.isna()].iloc[0])
+    n_bad, first = best if best is not None else (len(raw), raw.iloc[0])
+    want = repr(fmt) if fmt is not None else ("ISO 8601 (2024-05-13 14:02:11.250), DD.MM.YYYY hh:mm:ss,fff or "
+                                             "hh:mm:ss.fff; or give format: (strptime) in the mapping")
+    raise MappingError(f"{label}: {n_bad} of {len(raw)} date-time stamps unreadable (first {first!r}); expected {want}")
+
+
+def regrid_stamps(t: np.ndarray, stamps: dict, runs: np.ndarray | None, label: str) -> tuple[np.ndarray, dict]:
+    """The uniform clock through date-time stamps ``t`` [s] (each run on its
+    own): a least-squares line t_k = t_0 + k dt, kept when every stamp lies
+    within half the stamps' resolution plus STAMP_JITTER intervals of it.
+    Returns (time from the file's first sample [s], metadata: resolution,
+    largest deviation [s], measured rate [Hz] per run). MappingError naming
+    ``label`` for a repeated, decreasing or irregular stamp."""
+    res, s = stamps["resolution [s]"], stamps["strings"]
+    labels = runs if runs is not None else np.zeros(len(t), int)
+    out = np.empty_like(t)
+    rates, devs = {}, []
+    for run in dict.fromkeys(labels.tolist()):
+        idx = np.flatnonzero(labels == run)
+        where = label + (f" run {run!r}" if runs is not None else "")
+        tg = t[idx]
+        if len(tg) < 2:
+            raise MappingError(f"{where}: fewer than 2 date-time stamps; expected a record")
+        dt = np.diff(tg)
+        for cond, what in ((dt == 0, "repeats"), (dt < 0, "is earlier than")):
+            if np.any(cond):
+                i = int(np.argmax(cond))
+                raise MappingError(f"{where}: stamp {s[idx[i + 1]]!r} (data row {idx[i + 1] + 1}) {what} the one "
+                                   f"before it ({s[idx[i]]!r}); expected increasing stamps"
+                                   + (f" (stamps resolving {res:g} s cannot hold a record sampled faster than "
+                                      f"{1 / res:g} Hz)" if what == "repeats" and np.median(dt) < 2 * res else ""))
+        k = np.arange(len(tg), dtype=float)
+        slope, icept = np.polyfit(k, tg, 1)
+        dev = np.abs(tg - (icept + slope * k))
+        tol = 0.5 * res + STAMP_JITTER * slope
+        if dev.max() > tol:
+            i = int(np.argmax(dev))
+            raise MappingError(f"{where}: irregular sampling: stamp {s[idx[i]]!r} (data row {idx[i] + 1}) lies "
+                               f"{dev.max():.3g} s off the uniform {1 / slope:.6g} Hz clock through the stamps; at "
+                               f"most {tol:.3g} s (half the stamps' {res:g} s resolution + {STAMP_JITTER:g} "
+                               f"sampling interval) is accepted")
+        out[idx] = icept + slope * k
+        rates[str(run)] = 1.0 / slope
+        devs.append(float(dev.max()))
+    out -= out[0]
+    info = {"format": stamps["format"], "resolution [s]": res, "max deviation [s]": max(devs),
+            "rate [Hz]": rates if runs is not None else rates["0"]}
+    return out, info
 
 
 def _setting_meta(mapping: dict, where: str) -> dict:
@@ -254,14 +359,19 @@ def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike
     protocol = protocol or mapping.get("protocol") or named
     df = _read_source(src, dict(mapping.get("csv") or {}), mapping.get("json"))
     res = convert(df, mapping, where=f"{src} (mapping {map_where})")
-    meta = {"imported": True, "synthetic": False, "source": src.name, "source_sha256": file_sha256(src),
-            "mapping": _plain(mapping), "protocol": protocol,
+    if not isinstance(mapping.get("synthetic", False), bool):
+        raise MappingError(f"{map_where}: synthetic: {mapping['synthetic']!r}; expected true or false")
+    meta = {"imported": True, "synthetic": mapping.get("synthetic", False), "source": src.name,
+            "source_sha256": file_sha256(src), "mapping": _plain(mapping), "protocol": protocol,
             "units": {str(k): v.get("unit") for k, v in mapping["columns"].items() if isinstance(v, dict)},
             **_setting_meta(mapping, map_where)}
+    if "time stamps" in res.attrs:
+        meta["time stamps"] = res.attrs["time stamps"]
     # the record passes the measurement reader's checks before anything is written (an earlier file stays)
-    io.check_record(res, meta, str(out), protocol)
+    io.check_record(res, meta, f"{out} (imported from {src})", protocol)
     io.write_frame(out, res, meta)
     return out
 
 
-__all__ = ["UNIT_TABLE", "MappingError", "to_si", "convert", "import_measurement", "file_sha256"]
+__all__ = ["UNIT_TABLE", "MappingError", "to_si", "convert", "import_measurement", "file_sha256", "parse_stamps",
+           "regrid_stamps", "DATETIME_FORMATS", "STAMP_JITTER"]

@@ -40,6 +40,26 @@ def select_runs(protocol: dict, test: str, case: str | None, current: float | No
     return chosen
 
 
+def runs_for_design(design, runs: list, test: str) -> list:
+    """The runs a design's architecture can run: no flow-bench run of a valve it lacks; a passive damper (no
+    active valve) runs each input once, at the protocol's first current (the current is not read)."""
+    from .calibration.damper_fit import present_valves
+
+    if design.pq_map is not None:
+        return runs
+    have = present_valves(design)
+    kept = [r for r in runs if r.configuration != "valve" or r.bench_valve in have]
+    first = {}
+    for r in kept:
+        key = r.name.replace(f"I{r.current:g}", "")  # the run's input without its current label
+        first.setdefault(key, r)
+    kept = [r for r in kept if first[r.name.replace(f"I{r.current:g}", "")] is r]
+    if not kept:
+        raise UserError(f"test {test!r}: no run a {design.architecture} damper can run (no active valve"
+                        + (", no such valve" if runs and runs[0].configuration == "valve" else "") + ")")
+    return kept
+
+
 def _run_frame(design, run, protocol: dict) -> pd.DataFrame:
     kw = {}
     if run.configuration == "valve":
@@ -71,11 +91,13 @@ def simulate_test(design_path: str | Path, test: str, out: str | Path, *, case: 
         raise UserError(f"--current {current}: expected a finite current in A")
     design = load_design(design_path)
     protocol = load_protocol(proto_path)
-    frames = [_run_frame(design, r, protocol) for r in select_runs(protocol, test, case, current)]
+    frames = [_run_frame(design, r, protocol) for r in runs_for_design(design, select_runs(protocol, test, case, current),
+                                                                       test)]
     df = pd.concat(frames, ignore_index=True)
     meta = {"synthetic": True, "simulated": True, "design": str(design_path), "design_hash": design.hash(),
             "test": test, "runs": [f["run"].iloc[0] for f in frames], "dampertwin": __version__,
-            **({"setting": design.setting} if design.adjusters else {})}  # the record names its clicks
+            **({"setting": design.setting} if design.adjusters else {}),  # the record names its clicks
+            **({"architecture": design.architecture, "current_read": False} if design.pq_map is None else {})}
     out.mkdir(parents=True, exist_ok=True)
     pq = write_frame(out / f"{test}.parquet", df, meta)
     png = out / f"{test}.png"

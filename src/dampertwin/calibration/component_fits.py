@@ -110,7 +110,7 @@ def jacobian_ci(problem: RecordProblem, best: dict, specs=None) -> dict:
     hi = np.array([bounds.get(k, (-np.inf, np.inf))[1] for k in keys], float)
     span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
     scale = np.where(x != 0, np.abs(x), span)  # coordinates u = value / scale: steps of 1e-3 relative
-    precise = RecordProblem(problem.design, problem.configuration, problem.channel, problem.files,
+    precise = type(problem)(problem.design, problem.configuration, problem.channel, problem.files,
                             {**problem.sim_kw, "rtol": UNCERTAINTY_RTOL, "atol": UNCERTAINTY_ATOL}, problem.nuisance)
 
     def batch(U):

@@ -65,9 +65,8 @@ _COPY_FROM = {**{n: n - 35 for n in range(69, 87)}, **{n: n - 34 for n in range(
 _CONSTANT_COPY_FROM = {"x_max_base_compression": "x_max_piston_rebound", "x_max_base_intake": "x_max_piston_intake"}
 # effects that act on the active valve: meaningless without one
 ACTIVE_VALVE_EFFECTS = ("active_valve_lag", "valve_friction_current", "active_valve_driver")
-# effects whose equations assume a reserve tube (the mono tube's floating-piston
-# balance does not yet carry the gas's own heating)
-NOT_IN_MONO_TUBE = ("oil_thermal",)
+# effects whose equations assume a reserve tube (none since the floating-piston balance carries the gas's heating)
+NOT_IN_MONO_TUBE: tuple[str, ...] = ()
 
 
 def parse(doc: dict, where: str, errors: list[str]) -> str:

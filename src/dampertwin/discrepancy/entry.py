@@ -23,7 +23,7 @@ from .workflow import Problem, record_pool, run, verdict_document
 
 CONFIGURATIONS = {"flowbench": "valve", "compliance": "damper", "curving": "damper", "monosine": "module", "random": "module",
                   "training": None, "verification": None, "thermal": "damper",
-                  "friction": "damper"}
+                  "friction": "damper", "dyno": "damper"}
 PROFILES = ("ci", "full")
 
 
@@ -83,7 +83,9 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
     want = prof["tests"] if tests is None else tests
     maxd = prof.get("max_duration", {}) or {}
     units, variants = [], {}
-    lo, hi = float(design.pq_map.currents[0]), float(design.pq_map.currents[-1])
+    # the current range of the active valve's map (a passive design reads no current: not checked)
+    current_range = ((float(design.pq_map.currents[0]), float(design.pq_map.currents[-1]))
+                     if design.pq_map is not None else None)
     for test, files in usable.items():
         sel = want.get(test, [])
         if sel != "all":
@@ -97,7 +99,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         bench = flow_bench(proto) if cfg_name == "valve" else None
         flow_cut = _flow_input_cutoff(conf) if cfg_name == "valve" else None
         for f in files:
-            df, meta = read_record(f, test, conf=conf, current_range=(lo, hi))  # the one measurement reader
+            df, meta = read_record(f, test, conf=conf, current_range=current_range)  # the one measurement reader
             case = f.stem
             vpath = conf / "variant" / f"{case}.yaml"
             if test in ("monosine", "random", "training", "verification") and vpath.is_file():
@@ -108,7 +110,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
                     notes.append(f"{f}: variant {case} does not apply to the design ({e}); skipped")
                     continue
                 variants[case] = v
-            for name, g in runs(df):
+            for name, g in _segments(test, df, f, design):
                 if cfg_name == "valve" and str(name) not in proto.get("valves", {}):
                     raise DiscrepancyError(f"{f}: " + ("no 'run' column naming the valve" if name is None else
                                                        f"run {name!r} is not a flow-bench valve")
@@ -131,6 +133,25 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         raise DiscrepancyError(f"{measured}: no record of the tests this profile uses ({wanted}); present: "
                                + ", ".join(f"{k}/{{{','.join(f.stem for f in v)}}}" for k, v in present.items()))
     return units, variants, notes
+
+
+def _segments(test: str, df, f: Path, design) -> list:
+    """The runs of a record; a dyno run cut into its speed steps (features.dyno_segments), with the current
+    a semi-active design needs (a dyno export of a passive damper has none: 0 A, not read)."""
+    if test != "dyno":
+        return runs(df)
+    out = []
+    for name, g in runs(df):
+        if "current [A]" not in g:
+            if design.pq_map is not None:
+                raise DiscrepancyError(f"{f}: a dyno record of the semi-active design {design.name!r} needs a "
+                                       f"'current [A]' column")
+            g = g.assign(**{"current [A]": 0.0})
+        try:
+            out += F.dyno_segments(str(name if name is not None else "dyno"), g)
+        except ValueError as e:
+            raise DiscrepancyError(f"{f}: {e}") from None
+    return out
 
 
 def _flow_input_cutoff(conf: Path) -> float:
@@ -262,6 +283,9 @@ def _dump_design(design, folder: Path) -> None:
     """OUT/design.yaml with its P/Q map beside it (a design that loads on its own)."""
     from ..design import write_map
 
+    if design.pq_map is None:  # a passive architecture: no map beside it
+        (folder / "design.yaml").write_text(design.dumps(folder.resolve()))
+        return
     rel = str(design.param(52).value)
     name = Path(rel).name
     write_map(folder / name, design.pq_map)

@@ -339,6 +339,33 @@ def peak_velocity(t: np.ndarray, x: np.ndarray) -> float:
     return float(2 * math.pi * f * abs(kpi.harmonic(t, x, f)))
 
 
+DYNO_MIN_HALF_STROKES = 4  # a dyno speed step: at least two cycles
+
+
+def dyno_segments(run: str, frame) -> list:
+    """A dyno run cut into its speed steps (dampertwin.dyno: reversals and steps found from the displacement),
+    each from its first to its last reversal: [(label, frame slice)], the run itself when it has one step (a
+    warm-up run keeps its whole temperature history). Each step is a sine unit of its own, simulated from rest,
+    so a cut step leaves its oil temperature out (its history before the step is not simulated)."""
+    from ..dyno import F as DF, T as DT, X as DX, half_strokes, speed_steps
+
+    hs = half_strokes(frame[DT].to_numpy(float), frame[DX].to_numpy(float), frame[DF].to_numpy(float))
+    if len(hs) == 0:
+        raise ValueError(f"run {run}: no full stroke in the record")
+    steps = speed_steps(hs)
+    # a step of fewer half-strokes is a transition (a fade-in / fade-out of the stroke), not a speed step
+    kept = [k for k in range(int(steps.max()) + 1) if np.sum(steps == k) >= DYNO_MIN_HALF_STROKES]
+    if len(kept) <= 1:
+        return [(run, frame)]
+    out = []
+    for k in kept:
+        g = hs[steps == k]
+        a, b = int(g["start"].min()), int(g["end"].max())
+        seg = frame.iloc[a:b + 1].drop(columns=[TEMP], errors="ignore").reset_index(drop=True)
+        out.append((f"{run}@{float(g['speed [m/s]'].median()):.3g}m/s", seg))
+    return out
+
+
 def keep_run(test: str, current: float, t: np.ndarray, x: np.ndarray, run_filter: dict | None) -> bool:
     """Whether a run passes the profile's ``run_filter`` of its test
     (``min_peak_velocity`` / ``max_peak_velocity`` [m/s] of the fitted stroke sine,

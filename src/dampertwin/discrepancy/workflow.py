@@ -64,6 +64,13 @@ def calibration_params(design: Design, cfg: dict) -> list[FitParam]:
     return out
 
 
+def _lacking(design: Design) -> tuple[str, ...]:
+    """Effects of parts the design's architecture has no part for (a passive damper's active-valve effects)."""
+    from ..design.architecture import ACTIVE_VALVE_EFFECTS
+
+    return ACTIVE_VALVE_EFFECTS if design.pq_map is None else ()
+
+
 def catalogue(design: Design, cfg: dict) -> list[Candidate]:
     """Candidates, data-driven: every effect with ``effect_parameters`` that is
     off in the design (fit = its C entries, magnitude = ``typical``), plus the
@@ -75,13 +82,13 @@ def catalogue(design: Design, cfg: dict) -> list[Candidate]:
         for e in design.effect_parameters():
             by.setdefault(e.effect, []).append(e)
         for eff, entries in by.items():
-            if design.effects.get(eff, False):
+            if design.effects.get(eff, False) or eff in _lacking(design):
                 continue
             params = [FitParam(e.key, float(e.bounds[0]), float(e.bounds[1]), float(e.typical))
                       for e in entries if e.type == "C" and e.bounds is not None]
             cands[eff] = Candidate(eff, [eff], params, {e.key: float(e.typical) for e in entries})
     for eff, spec in (cfg.get("thesis_effects") or {}).items():
-        if eff in cands or eff not in design.effects or design.effects[eff]:
+        if eff in cands or eff not in design.effects or design.effects[eff] or eff in _lacking(design):
             continue
         params, typ = [], {}
         for key, s in ((spec or {}).get("params") or {}).items():

@@ -39,20 +39,24 @@ REQUIRED = {
     "topmount": ("time", "displacement", "force"),
     "thermal": ("time", "displacement", "force", "current", "oil temperature"),
     "friction": ("time", "displacement", "force", "current", "precharge"),
+    "dyno": ("time", "displacement", "force"),  # a passive damper's dyno export (current, oil temperature optional)
 }
 # shortest usable record per protocol [s] (per run where a file holds several)
 MIN_DURATION = {"flowbench": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
                 "topmount": 0.02, "training": 1.0, "verification": 1.0, "thermal": 2.0,
-                "friction": 0.5}
+                "friction": 0.5, "dyno": 1.0}
 from ..excitation import UNIFORM_TOL, grid_deviation  # noqa: E402  (time stamps within UNIFORM_TOL intervals of a grid)
 T_OIL_RANGE = (233.15, 423.15)  # [K] an oil temperature a damper test can have (-40 .. 150 degC)
 PRECHARGE_RANGE = (1.5e5, 5.0e6)  # [Pa] absolute gas precharge of a damper (0.5 .. 49 bar gauge)
 MAX_FILE_MB = 64.0  # [MB] largest measurement file read (DAMPERTWIN_MAX_FILE_MB raises it): a junk file is refused, not parsed
 RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's still accepted
+# protocols whose records may have any sampling rate at or above this [Hz] (measured from the time column),
+# instead of the protocol's own rate: a dyno export is logged at whatever rate the dyno's software was set to
+MIN_RATE = {"dyno": 100.0}
 # channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
 EXCITED = {"flowbench": ("flow", "dp"),
            **{p: ("displacement", "force") for p in ("compliance", "curving", "topmount", "thermal",
-                                                           "friction")},
+                                                           "friction", "dyno")},
            **{p: ("displacement", "force", "rod acceleration") for p in ("monosine", "random", "training",
                                                                        "verification")}}
 # every unit a column may carry (SI); anything else (bar, mm, kN, l/min, g, degC, ...) is rejected
@@ -273,6 +277,9 @@ def check_frame(df: pd.DataFrame, meta: dict, where: str, protocol: str | None =
         else:
             want = rate.get(str(run)) if isinstance(rate, dict) else rate
             fs = 1.0 / float(np.mean(dt))
+            if protocol in MIN_RATE and fs < MIN_RATE[protocol]:
+                errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz (measured from the time stamps); "
+                              f"a {protocol} record needs >= {MIN_RATE[protocol]:g} Hz")
             if want is not None and abs(fs - want) > RATE_TOL * want:
                 errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz; protocol {protocol} records at "
                               f"{want:g} Hz ({_rate_hint(fs, want)})")

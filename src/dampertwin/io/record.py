@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import DataError, check_frame, read_table
+from . import MIN_RATE, DataError, check_frame, read_table
 
 PLAUSIBLE_FACTOR = 30.0  # a channel's peak may lie up to this factor above / below the protocol's target
 # physical range of a channel's peak |value| (SI) in any damper, top-mount or valve test; None: not bounded
@@ -131,6 +131,8 @@ def check_record(df: pd.DataFrame, meta: dict, where: str, test: str | None = No
     if "module" in spec.configurations.values() and "rod acceleration [m/s^2]" not in df:
         errors.append(f"{where}: missing column 'rod acceleration [m/s^2]' (a module test, {spec.path})")
     rates = set(spec.rates.values())
+    if spec.protocol in MIN_RATE:  # any measured rate >= MIN_RATE (checked by check_frame), not the protocol's
+        rates = {None}
     try:
         df = check_frame(df, meta, where, spec.protocol, current_range=current_range,
                          rate=rates.pop() if len(rates) == 1 else spec.rates)

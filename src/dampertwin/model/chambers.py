@@ -70,17 +70,21 @@ def pressure_rate(K, V, dV, Q_out):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def floating_piston(K_c, V_c, dV_c, Q_out, P_gas, V_g, gamma):
+def floating_piston(K_c, V_c, dV_c, Q_out, P_gas, V_g, gamma, heating):
     """Mono tube: the compression chamber's oil (modulus K_c [Pa], volume V_c
     [m^3]) and the gas chamber (P_gas [Pa], V_g [m^3], polytropic index gamma)
     behind a massless, frictionless floating piston, so P_c = P_gas and their
-    compliances add: V_c / K_c + V_g / (gamma P_gas) [m^3/Pa] (eq. 4.9 with
-    the gas spring of THESIS-ERRATA 8 in series; Talbott & Starkey 2002).
-    dV_c [m^3/s]: the chamber's volume rate at a fixed floating piston; Q_out
-    [m^3/s]: its net oil outflow. Returns (dP_c/dt [Pa/s], dV_g/dt [m^3/s])."""
+    compliances c_oil = V_c / K_c and c_gas = V_g / (gamma P_gas) [m^3/Pa] add
+    (eq. 4.9 with the gas spring of THESIS-ERRATA 8 in series; Talbott &
+    Starkey 2002). dV_c [m^3/s]: the chamber's volume rate at a fixed floating
+    piston; Q_out [m^3/s]: its net oil outflow; heating [Pa/s]: the gas's
+    pressure rate at fixed volume (P_gas dT/dt / T with oil_thermal, else 0).
+    Oil: c_oil dP = -(dV_c + Q_out) + dV_g; gas: dP = -dV_g / c_gas + heating.
+    Returns (dP_c/dt [Pa/s], dV_g/dt [m^3/s])."""
     c_gas = V_g / (gamma * P_gas)
-    dP = -(dV_c + Q_out) / (V_c / K_c + c_gas)
-    return dP, -c_gas * dP
+    c_oil = V_c / K_c
+    dP = (-(dV_c + Q_out) + c_gas * heating) / (c_gas + c_oil)
+    return dP, c_gas * (heating - dP)
 
 
 @njit(cache=True, error_model="numpy")

@@ -87,13 +87,13 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
     mono = p[P.ARCH] == MONO_TUBE
     passive = mono or p[P.ARCH] == TWIN_TUBE
     P_res = gas_spring_pressure(p[P.P0], p[P.V_G0], y[S.V_g], p[P.GAMMA])
-    if mono:  # the floating piston holds the compression chamber at the gas pressure (chambers.floating_piston)
-        P_c = P_res
     K_oil = p[P.K_OIL]
     T_oil = p[P.TEMP]
     if extended:  # oil_thermal: the reserve gas at the oil temperature, the oil's modulus at it
         P_res *= gas_temperature_factor(y, oe + EX.T_oil, p)
         K_oil, T_oil = oil_state(y, oe + EX.T_oil, p)
+    if mono:  # the floating piston holds the compression chamber at the gas pressure (chambers.floating_piston)
+        P_c = P_res
 
     # oil viscosity, at the oil temperature with the effect oil_thermal
     nu = p[P.NU]
@@ -160,7 +160,8 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
         dV_b -= e_b
     dy[S.P_r] = pressure_rate(K_r, V_r, dV_r, Q_p + Q_bp)
     if mono:
-        dy[S.P_c], dy[S.V_g] = floating_piston(K_c, V_c, dV_c, -Q_p, P_res, y[S.V_g], p[P.GAMMA])
+        dy[S.P_c], dy[S.V_g] = floating_piston(K_c, V_c, dV_c, -Q_p, P_res, y[S.V_g], p[P.GAMMA],
+                                               P_res * dT / T_oil if extended else 0.0)
     else:
         dy[S.P_c] = pressure_rate(K_c, V_c, dV_c, -Q_p + Q_bv)
         dy[S.V_g] = -(Q_bv + Q_a)  # reserve gas (THESIS-ERRATA 8)

@@ -17,7 +17,7 @@ from ..design import ConfigTextError, yaml_load_file
 from ..excitation import Excitation
 from ..model.layout import VALVE_NAMES
 from ..errors import UserError
-from .signals import band_noise, sine_burst_train, triangle_ramps, triangle_wave
+from .signals import DYNO_REST, band_noise, sine_burst_train, triangle_ramps, triangle_wave, velocity_steps
 
 EXCITATION_RATE = 20_000.0  # [Hz] sampling of generated excitations
 
@@ -63,7 +63,14 @@ _SCHEMA: dict[str, dict[str, Any]] = {
                 "currents": list, "rate": float},
     "friction": {"configuration": "damper", "amplitude": float, "velocity": float, "currents": list,
                  "precharges": list, "cycles": int, "rate": float},
+    "dyno": {"configuration": "damper", "amplitude": float, "velocities": list, "waveform": str, "cycles": int,
+             "rate": float},
 }
+# keys a protocol may leave out (validated when given); a protocol without currents is passive (one run)
+_OPTIONAL: dict[str, dict[str, Any]] = {"dyno": {"currents": list, "rest": float}}
+_CHOICES = {"waveform": ("sine", "triangle")}  # str keys: their allowed values
+DYNO_MIN_CYCLES = {"sine": 4, "triangle": 3}  # the KPIs need 2 half-strokes per direction after the run-in
+# (a sine burst also spends a period fading in and one fading out)
 # documented bandwidths [Hz] a protocol may name; deflection: the module test's LVDT on the rod (thesis 7.2)
 SENSOR_KEYS = ("force", "acceleration", "temperature", "deflection")
 PROTOCOLS = tuple(_SCHEMA)
@@ -77,9 +84,11 @@ def validate(doc: Any, where: str) -> dict:
     if name not in _SCHEMA:
         raise ProtocolError([f"{where}: unknown protocol {name!r}; expected one of {', '.join(PROTOCOLS)}"])
     errors = []
-    for key, kind in _SCHEMA[name].items():
+    optional = _OPTIONAL.get(name, {})
+    for key, kind in {**_SCHEMA[name], **optional}.items():
         if key not in doc:
-            errors.append(f"{where}: {name}.{key} missing")
+            if key not in optional:
+                errors.append(f"{where}: {name}.{key} missing")
             continue
         v = doc[key]
         if key == "configuration":
@@ -99,6 +108,8 @@ def validate(doc: Any, where: str) -> dict:
                 errors.append(f"{where}: {name}.{key} = {v!r}; expected positive finite numbers (SI)")
         elif kind is dict and not isinstance(v, dict):
             errors.append(f"{where}: {name}.{key} must be a mapping")
+        elif kind is str and v not in _CHOICES[key]:
+            errors.append(f"{where}: {name}.{key} = {v!r}; expected {' or '.join(_CHOICES[key])}")
     sensors = doc.get("sensors", {})
     if not isinstance(sensors, dict) or any(k not in SENSOR_KEYS or not _pos(v) for k, v in sensors.items()):
         errors.append(f"{where}: {name}.sensors must map {' / '.join(SENSOR_KEYS)} to a bandwidth in Hz, "
@@ -106,8 +117,8 @@ def validate(doc: Any, where: str) -> dict:
     if name == "thermal" and not (isinstance(sensors, dict) and "temperature" in sensors):
         errors.append(f"{where}: thermal.sensors.temperature missing (the thermocouple's documented bandwidth in Hz)")
     for k in doc:
-        if k not in ("protocol", "sensors") and k not in _SCHEMA[name]:
-            errors.append(f"{where}: {name}.{k}: unknown key; expected {', '.join(_SCHEMA[name])}")
+        if k not in ("protocol", "sensors") and k not in _SCHEMA[name] and k not in optional:
+            errors.append(f"{where}: {name}.{k}: unknown key; expected {', '.join([*_SCHEMA[name], *optional])}")
     for key in ("bands",):
         for i, b in enumerate(doc.get(key, []) if isinstance(doc.get(key), list) else []):
             if not (isinstance(b, dict) and isinstance(b.get("band"), list) and len(b["band"]) == 2
@@ -119,6 +130,11 @@ def validate(doc: Any, where: str) -> dict:
                 errors.append(f"{where}: flowbench.valves.{k}: unknown valve; expected {', '.join(VALVE_NAMES)}")
             elif not (isinstance(v, dict) and _pos(v.get("q_max"))):
                 errors.append(f"{where}: flowbench.valves.{k}.q_max must be a positive flow in m^3/s")
+    if name == "dyno" and doc.get("waveform") in DYNO_MIN_CYCLES and isinstance(doc.get("cycles"), int):
+        need = DYNO_MIN_CYCLES[doc["waveform"]]
+        if doc["cycles"] < need:
+            errors.append(f"{where}: dyno.cycles = {doc['cycles']}; a {doc['waveform']} step needs >= {need} "
+                          f"(steady cycles between the run-in and the run-out)")
     if errors:
         raise ProtocolError(errors)
     return doc
@@ -241,10 +257,21 @@ def _topmount(c, seed):
     return runs
 
 
+def _dyno(c, seed):
+    """Dyno test: one stepped record per current (``currents``; none: one passive run at 0 A, for a
+    passive architecture, which reads no current) of ``cycles`` cycles at each peak velocity in turn."""
+    A, vs, wf = c["amplitude"], c["velocities"], c["waveform"]
+    ex = velocity_steps(A, vs, c["cycles"], wf, c.get("rest", DYNO_REST))
+    meta = {"amplitude [m]": A, "velocities [m/s]": [float(v) for v in vs], "waveform": wf, "cycles": c["cycles"]}
+    if "currents" not in c:
+        return [Run("dyno", "passive", "damper", ex, 0.0, c["rate"], None, {**meta, "passive": True})]
+    return [Run("dyno", f"I{I:g}", "damper", ex, float(I), c["rate"], None, dict(meta)) for I in c["currents"]]
+
+
 _BUILDERS: dict[str, Callable] = {
     "flowbench": _flowbench, "compliance": _compliance, "topmount": _topmount, "curving": _curving,
     "monosine": _monosine, "random": _random, "training": _training, "verification": _verification,
-    "thermal": _thermal, "friction": _friction,
+    "thermal": _thermal, "friction": _friction, "dyno": _dyno,
 }
 
 

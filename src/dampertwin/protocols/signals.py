@@ -95,3 +95,27 @@ def sine_burst_train(segments: list[tuple[float, float]], cycles: int, rest: flo
         xs += [A * w * np.sin(om * t), np.zeros(int(rest * sample_rate))]
         vs += [A * (dw * np.sin(om * t) + w * om * np.cos(om * t)), np.zeros(int(rest * sample_rate))]
     return Excitation(0.0, 1.0 / sample_rate, np.concatenate(xs), np.concatenate(vs))
+
+
+DYNO_REST = 0.5  # [s] damper at rest (mid-stroke) between the speed steps of a dyno test
+
+
+def velocity_steps(amplitude: float, velocities: list[float], cycles: int, waveform: str = "sine",
+                   rest: float = DYNO_REST, sample_rate: float = 2000.0) -> Excitation:
+    """Dyno test displacement [m]: for each peak velocity [m/s] in turn
+    ``cycles`` cycles of stroke amplitude ``amplitude`` [m], ``rest`` seconds
+    at mid-stroke between the steps. ``sine``: bursts of
+    :func:`sine_burst_train` (f = v / (2 pi A), raised-cosine run-in and
+    run-out periods); ``triangle``: constant speed v, period 4 A / v (the
+    constant-velocity dyno program; corners rounded by the model's Hermite
+    interpolation). Starts and ends at rest at mid-stroke."""
+    if waveform == "sine":
+        return sine_burst_train([(amplitude, v) for v in velocities], cycles, rest, sample_rate)
+    if waveform != "triangle":
+        raise ValueError(f"waveform {waveform!r}; expected 'sine' or 'triangle'")
+    xs, vs = [np.zeros(int(rest * sample_rate))], [np.zeros(int(rest * sample_rate))]
+    for v in velocities:
+        tri = triangle_wave(amplitude, 4.0 * amplitude / v, cycles, sample_rate)
+        xs += [tri.value[:-1], np.zeros(int(rest * sample_rate))]  # the last sample (0) is the rest's first
+        vs += [tri.rate[:-1], np.zeros(int(rest * sample_rate))]
+    return Excitation(0.0, 1.0 / sample_rate, np.concatenate(xs), np.concatenate(vs))
