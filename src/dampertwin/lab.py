@@ -520,10 +520,12 @@ def plan(conf: Path, protocols: dict | None = None,
     approach 1 and, when ``conf/test`` declares them, the approach-2 tests
     the warm-up test ``thermal`` and the friction test ``friction`` (all their
     runs in one file, case ``baseline``). A passive ``architecture``: the
-    flow bench of its valves, the compliance and curving tests."""
+    flow bench of its valves, the compliance and curving tests and, when
+    ``conf/test`` declares it, the dyno test (at 0 A)."""
     if architecture != DEFAULT_ARCHITECTURE:
-        return [("flowbench", v) for v in PASSIVE_VALVES[architecture]] + [("compliance", "baseline"),
-                                                                           ("curving", "baseline")]
+        protocols = load_all(conf / "test") if protocols is None else protocols
+        return ([("flowbench", v) for v in PASSIVE_VALVES[architecture]]
+                + [(t, "baseline") for t in ("compliance", "curving", "dyno") if t in protocols])
     variants = load_variants(conf / "variant")
     protocols = load_all(conf / "test") if protocols is None else protocols
     items = [("flowbench", v) for v in VALVE_DESIGNS] + [("compliance", "baseline")]
@@ -570,7 +572,7 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
     elif protocol == "topmount":
         vcase = TOP_MOUNTS[case]
         d = variants[vcase].apply(nominal) if vcase else nominal
-    elif protocol in ("compliance", "curving") or protocol in APPROACH2_TESTS + EXTRA_TESTS:
+    elif protocol in ("compliance", "curving", "dyno") or protocol in APPROACH2_TESTS + EXTRA_TESTS:
         d = nominal
     else:
         v: Variant = variants[case]

@@ -16,7 +16,7 @@ from .excitation import Excitation
 
 DEFAULT_ARCHITECTURE = "triple_tube_semi_active"
 # the tests of a passive damper's sample (no active valve: its runs at the protocol's first current, run at 0 A)
-PASSIVE_TESTS = ("flowbench", "compliance", "curving")
+PASSIVE_TESTS = ("flowbench", "compliance", "curving", "dyno")
 PASSIVE_VALVES = {"twin_tube": ("piston_rebound", "piston_intake", "base_compression", "base_intake"),
                   "mono_tube": ("piston_rebound", "piston_intake")}
 

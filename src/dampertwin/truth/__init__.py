@@ -24,6 +24,14 @@ equations, so the lab measures this package instead:
   low pressure and released at a finite rate (aeration.py). Their states
   run only when one is on (configurations "damper+" / "module+").
 
+The design's ``architecture:`` (params.py, passive.py) builds the thesis'
+triple tube, or a passive twin tube (no third tube, no active valve) or
+mono tube (no base valves either; a floating piston WITH mass and O-ring
+friction between the compression oil and the gas, floating.py: the model's
+is massless and frictionless). The parts an architecture lacks are not built
+(their parameters NaN). The triple tube's runs are bit for bit those before
+the passive architectures (tests/test_truth_passive.py, the lab's data).
+
 It may import the generic solver, the sensors, the excitations and the
 design loader (nominal values), never ``dampertwin.model`` (a test walks
 the imports; another compares function bodies).
