@@ -95,6 +95,24 @@ def test_mono_tube_at_rest_the_gas_pushes_the_rod_out():
         math.pi / 4 * v["chambers.D_PT"] ** 2))
 
 
+def test_mono_tube_gas_is_alone_behind_the_floating_piston_as_built():
+    """As built (the gas chamber's volume off its drawing) the mono tube's gas
+    fills its whole chamber at the precharge: no reserve oil, nothing dissolved."""
+    from dampertwin.truth import gas as gs
+    from dampertwin.truth import params as tp
+    from dampertwin.truth.layout import SO
+    from dampertwin.truth.run import _rest_damper
+
+    d = load(DESIGNS["mono_tube"])
+    p, rest, v = build(d, d, {}, as_built_seed=tp.as_built_seed(5))
+    V = p[tp.index("gas.V_TOT")]
+    assert V != rest["V_gas0"]
+    y = _rest_damper(p, "damper", 0.0, rest["T"], rest["P0"], rest["V_gas0"])
+    g = SO["gas"]
+    assert y[g + gs.M_RES] == 0.0 and y[g + gs.C] == 0.0
+    assert y[g + gs.M_G] * v["gas.R_S"] * rest["T"] / V == pytest.approx(rest["P0"], rel=1e-12)
+
+
 def test_mono_tube_compression_pressure_follows_the_gas_within_the_floating_pistons_friction():
     """The floating piston (mass M, O-ring slip force F0 and film C_V) holds
     P_c - P_g within (F0 + C_V |v| + M |a|) / A; sliding, the difference

@@ -78,8 +78,11 @@ def _rest_damper(p, configuration, u0, oil_T, P0, V_gas0):
     y[SO["chambers"] + ch.T_OIL] = oil_T
     rho_ref = float(density(P_ref, oil_T, p, oo))
     V_oil = p[go + gs.V_TOT] - V_gas0
+    V_fill = V_gas0
+    if architecture(p) == pv.MONO:  # the gas chamber alone behind the floating piston, filled to P0 as built
+        V_oil, V_fill = 0.0, p[go + gs.V_TOT]
     y[SO["gas"] + gs.M_RES] = rho_ref * V_oil
-    y[SO["gas"] + gs.M_G] = P0 * V_gas0 / (p[go + gs.R_S] * oil_T)
+    y[SO["gas"] + gs.M_G] = P0 * V_fill / (p[go + gs.R_S] * oil_T)
     y[SO["gas"] + gs.T_G] = oil_T
     y[SO["gas"] + gs.C] = p[go + gs.K_H] * P0 * V_oil
     av, ao = SO["active_valve"], PO["active_valve"]
