@@ -28,14 +28,14 @@ Engineering, as :func:`dampertwin.calibration.ga.run_ga`:
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
 
 from ..checkpoint import require_store
-from .ga import INFEASIBLE, NEAR_SPREAD, FitError, GASettings, ParamSpec, bound_hits
+from .ga import INFEASIBLE, NEAR_SPREAD, FitError, FitResult, GASettings, ParamSpec, bound_hits
 
 
 @dataclass(frozen=True)
@@ -74,29 +74,26 @@ class BatchScorer:
         return np.vstack([o[0] for o in outs]), [w for o in outs for w in o[1]]
 
 
-@dataclass
-class ConcurrentResult:
-    best: dict[str, float]  # best individual by the unweighted objective
-    best_objective: float  # its unweighted objective
-    best_group_objectives: dict[str, float]  # its per-group objectives
-    best_evaluation: int  # 1-based index of the evaluation (simulation) that found it ("iteration 2639")
-    start_objective: float  # unweighted objective of x0 (nan without x0)
-    history: pd.DataFrame  # per generation: best / mean per group, best unweighted in population and so far
-    failed: int
-    evaluations: int
-    failures: dict = field(default_factory=dict)
-    groups: list = field(default_factory=list)
-    bound_hits: list = field(default_factory=list)  # best values on an end of their search interval (ga.bound_hits)
+@dataclass(frozen=True)
+class ConcurrentSettings:
+    """The concurrent GAs of :func:`.optimisers.run`: the GA settings each
+    group's GA runs with (thesis tables 7.x: population, reproduction ratio,
+    generations, mutation)."""
+
+    ga: GASettings
 
 
 def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASettings, seed: int, *,
                    x0: dict[str, float] | None = None, checkpoint=None,
-                   label: str = "concurrent GA", progress: bool = True, context: str = "") -> ConcurrentResult:
+                   label: str = "concurrent GA", progress: bool = True, context: str = "") -> FitResult:
     """Algorithm 1. ``score`` maps combined parameter rows (columns: the
     groups' specs in order) to one objective per group plus the unweighted
     one. ``x0`` (the nominal design) is member 0 of every group. A
     checkpoint is reused only if groups, settings, seed, x0 and ``context``
-    match."""
+    match. The result (the core's :class:`~.ga.FitResult`) is the best
+    individual by the unweighted objective, with its per-group objectives
+    (``best_group_objectives``) and the evaluation that found it
+    (``best_evaluation``)."""
     import pygad
     from ..progress import progress as tqdm
 
@@ -146,7 +143,7 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
             pop[0] = part
     start_gen, rows = 0, []
     store = require_store(checkpoint)  # no file I/O here: the stage passes a store
-    sig = json.dumps({"groups": [[g.name, [s.__dict__ for s in g.specs]] for g in groups], "ga": settings.__dict__,
+    sig = json.dumps({"groups": [[g.name, [s.state() for s in g.specs]] for g in groups], "ga": settings.__dict__,
                       "seed": seed, "x0": x0, "context": context}, sort_keys=True)
     z = store.load() if store else None
     if z is not None:
@@ -213,10 +210,11 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
     gb = np.frombuffer(best_key, dtype=float)
     best = {s.key: float(s.to_value(gb[j])) for j, s in enumerate(specs)}
     start = float(objective(g0[None, :])[0, -1]) if g0 is not None else float("nan")
-    return ConcurrentResult(best, float(cache[best_key][-1]),
-                            {g.name: float(cache[best_key][gi]) for gi, g in enumerate(groups)},
-                            found_at[best_key], start, pd.DataFrame(rows), counters["failed"], counters["evals"],
-                            dict(failures), [g.name for g in groups], bound_hits(specs, best))
+    return FitResult(best, float(cache[best_key][-1]), start, pd.DataFrame(rows), counters["failed"],
+                     counters["evals"], dict(failures), bound_hits=bound_hits(specs, best),
+                     groups=[g.name for g in groups],
+                     best_group_objectives={g.name: float(cache[best_key][gi]) for gi, g in enumerate(groups)},
+                     best_evaluation=found_at[best_key])
 
 
 def _state(pops, gen, rows, cache, found_at, counters, sig, failures) -> dict:
@@ -251,4 +249,4 @@ def progress_figure(history: pd.DataFrame, groups: Sequence[str], title: str = "
     return fig
 
 
-__all__ = ["GAGroup", "BatchScorer", "ConcurrentResult", "run_concurrent", "progress_figure"]
+__all__ = ["GAGroup", "BatchScorer", "ConcurrentSettings", "run_concurrent", "progress_figure"]
