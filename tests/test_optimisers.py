@@ -145,3 +145,23 @@ def test_problem_scores_are_the_cost_of_the_residuals_with_reasons():
     assert J[0] == pytest.approx(4.0) and np.isnan(J[1])
     assert why == [None, "non-finite residual"]
     np.testing.assert_array_equal(rec.weights, w)
+
+
+def test_records_cost_equals_the_per_record_integrals_bit_for_bit():
+    """RecordsAbs (``dampertwin fit``'s submodel problems) sums eq. 6.x record by record on each record's own
+    time base exactly as the per-record integral_abs_error did: the same bits, NaN for a failed record."""
+    from dampertwin.calibration.approach1 import integral_abs_error
+    from dampertwin.calibration.problem import RecordsAbs
+
+    rng = np.random.default_rng(0)
+    times = [np.cumsum(rng.uniform(1e-3, 2e-3, n)) for n in (37, 101, 8)]
+    meas = [rng.normal(size=len(t)) for t in times]
+    sims = [rng.normal(size=(4, len(t))) for t in times]
+    sims[1][2, 50] = np.nan
+    R = np.hstack([m[None, :] - s for m, s in zip(meas, sims)])
+    got = RecordsAbs(times)(R)
+    want = np.zeros(4)
+    for t, m, s in zip(times, meas, sims):
+        want += np.array([integral_abs_error(t, m, row) for row in s])
+    assert np.isnan(got[2]) and np.isnan(want[2])
+    assert got[[0, 1, 3]].tobytes() == want[[0, 1, 3]].tobytes()

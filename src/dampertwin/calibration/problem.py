@@ -11,6 +11,8 @@ into the objective(s) an optimiser minimises:
 - :class:`WeightedAbs`: eq. 6.1 - 6.3 / 7.1 unweighted, sum_i w_i |e_i|
   with trapezoid weights w_i [s] (approach 1, approach 2's best-solution
   tracker);
+- :class:`RecordsAbs`: the same, record by record on each record's own
+  time base (``dampertwin fit``'s submodel fits);
 - :class:`GroupedAbs`: approach 2's concurrent GAs, eq. 7.1
   J_g = sum_i w_i I_g(t_i) |e_i| per valve group (sensitivity weights I_g),
   unweighted for the other groups, then the unweighted integral;
@@ -63,6 +65,25 @@ class WeightedAbs(Cost):
 
     def __call__(self, R: np.ndarray) -> np.ndarray:
         return row_integrals(np.abs(R), self.weights)
+
+
+class RecordsAbs(Cost):
+    """Eq. 6.1 - 6.3 summed over records with their own time bases: for
+    each record (times ``t``, its block of the residual row, in order)
+    int |e| dt by the trapezoid rule, NaN for a row whose record is not
+    finite (``dampertwin fit``'s submodel fits)."""
+
+    def __init__(self, times: list[np.ndarray]):
+        self.times = [np.asarray(t, float) for t in times]
+
+    def __call__(self, R: np.ndarray) -> np.ndarray:
+        R = np.atleast_2d(R)
+        J, k = np.zeros(len(R)), 0
+        for t in self.times:
+            E = np.abs(R[:, k:k + len(t)])
+            J += np.array([float(np.trapezoid(e, t)) if np.all(np.isfinite(e)) else float("nan") for e in E])
+            k += len(t)
+        return J
 
 
 class GroupedAbs(Cost):
@@ -145,4 +166,4 @@ class Problem:
         return self.scores(X)[0]
 
 
-__all__ = ["Problem", "Cost", "WeightedAbs", "GroupedAbs", "WhitenedChi2", "chi", "split_evaluation"]
+__all__ = ["Problem", "Cost", "WeightedAbs", "RecordsAbs", "GroupedAbs", "WhitenedChi2", "chi", "split_evaluation"]
