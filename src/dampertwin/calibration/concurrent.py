@@ -100,7 +100,6 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
     groups = list(groups)
     G = len(groups)
     sizes = [len(g.specs) for g in groups]
-    cuts = np.cumsum([0] + sizes)
     specs = [s for g in groups for s in g.specs]
     P = settings.population
     cache: dict[bytes, np.ndarray] = {}
@@ -131,31 +130,14 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
                 found_at[keys[i]] = counters["evals"]
         return np.array([cache[k] for k in keys])
 
-    rng = np.random.default_rng(seed)
-    pops = [rng.uniform(0, 1, (P, n)) for n in sizes]
-    g0 = None
-    if x0 is not None:
-        g0 = np.array([s.to_gene(x0[s.key]) for s in specs])
-        near = P // 2
-        for gi, pop in enumerate(pops):
-            part = g0[cuts[gi]:cuts[gi + 1]]
-            pop[1:near] = np.clip(part + NEAR_SPREAD * rng.standard_normal((near - 1, sizes[gi])), 0, 1)
-            pop[0] = part
+    pops, g0 = _first_populations(np.random.default_rng(seed), specs, sizes, P, x0)
     start_gen, rows = 0, []
     store = require_store(checkpoint)  # no file I/O here: the stage passes a store
     sig = json.dumps({"groups": [[g.name, [s.state() for s in g.specs]] for g in groups], "ga": settings.__dict__,
                       "seed": seed, "x0": x0, "context": context}, sort_keys=True)
     z = store.load() if store else None
-    if z is not None:
-        if str(z["sig"]) == sig:
-            pops = [z[f"pop{gi}"] for gi in range(G)]
-            start_gen = int(z["gen"])
-            rows = json.loads(str(z["history"]))
-            for k, s, n in zip(z["cache_keys"], z["cache_vals"], z["found_at"]):
-                cache[bytes(k)] = np.asarray(s, float)
-                found_at[bytes(k)] = int(n)
-            counters["failed"], counters["evals"] = int(z["failed"]), int(z["evals"])
-            failures.update(json.loads(str(z["failures"])))
+    if z is not None and str(z["sig"]) == sig:
+        pops, start_gen, rows = _restore(z, G, cache, found_at, counters, failures)
     parents = max(2, int(round(P * settings.reproduction_ratio / 100.0)))
 
     def record(gen: int, S: np.ndarray) -> None:
@@ -215,6 +197,34 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
                      groups=[g.name for g in groups],
                      best_group_objectives={g.name: float(cache[best_key][gi]) for gi, g in enumerate(groups)},
                      best_evaluation=found_at[best_key])
+
+
+def _first_populations(rng, specs: list, sizes: list, P: int, x0: dict | None) -> tuple[list, np.ndarray | None]:
+    """Each group's first population (uniform in its genes) and, with the
+    nominal design ``x0``, its genes ``g0``: member 0 of every group, half of
+    each population around it."""
+    cuts = np.cumsum([0] + sizes)
+    pops = [rng.uniform(0, 1, (P, n)) for n in sizes]
+    g0 = None
+    if x0 is not None:
+        g0 = np.array([s.to_gene(x0[s.key]) for s in specs])
+        near = P // 2
+        for gi, pop in enumerate(pops):
+            part = g0[cuts[gi]:cuts[gi + 1]]
+            pop[1:near] = np.clip(part + NEAR_SPREAD * rng.standard_normal((near - 1, sizes[gi])), 0, 1)
+            pop[0] = part
+    return pops, g0
+
+
+def _restore(z, G: int, cache: dict, found_at: dict, counters: dict, failures: dict) -> tuple[list, int, list]:
+    """A checkpoint's state (``_state``) back into the caches and counters; returns (populations,
+    next generation, history rows)."""
+    for k, s, n in zip(z["cache_keys"], z["cache_vals"], z["found_at"]):
+        cache[bytes(k)] = np.asarray(s, float)
+        found_at[bytes(k)] = int(n)
+    counters["failed"], counters["evals"] = int(z["failed"]), int(z["evals"])
+    failures.update(json.loads(str(z["failures"])))
+    return [z[f"pop{gi}"] for gi in range(G)], int(z["gen"]), json.loads(str(z["history"]))
 
 
 def _state(pops, gen, rows, cache, found_at, counters, sig, failures) -> dict:
