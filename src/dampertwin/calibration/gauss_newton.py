@@ -70,7 +70,7 @@ def _evaluate(problem, specs, anchor, pts: list, counters: dict) -> tuple[list, 
     return rows, outs
 
 
-def _start(problem, specs, settings, start, jacobian, counters, label):
+def _start(problem, specs, settings, start, jacobian, counters):
     """u at the specs' starts (pulled inside [0.05, 0.95] when that point is
     invalid), its residual / output and the Jacobian (given columns and a
     forward-difference batch for the rest)."""
@@ -103,7 +103,7 @@ def _start(problem, specs, settings, start, jacobian, counters, label):
 
 
 def gauss_newton(problem, specs: list[ParamSpec], settings: GaussNewtonSettings, *, start=None,
-                 jacobian: dict | None = None, label: str = "fit") -> FitResult:
+                 jacobian: dict | None = None) -> FitResult:
     """Minimise the problem's whitened chi^2 (``problem.cost``, a
     :class:`~.problem.WhitenedChi2`) plus the specs' priors over ``specs``
     from their ``start`` values. ``start``: (z, output) already known at the
@@ -115,7 +115,7 @@ def gauss_newton(problem, specs: list[ParamSpec], settings: GaussNewtonSettings,
 
     counters = {"evaluations": 0, "failed": 0}
     mask, cost = problem.cost.mask, problem.cost
-    u, anchor, z_cur, S_cur, J = _start(problem, specs, settings, start, jacobian, counters, label)
+    u, anchor, z_cur, S_cur, J = _start(problem, specs, settings, start, jacobian, counters)
     pc = np.array([p.to_u(p.prior[0]) if p.prior is not None else 0.0 for p in specs])
     pw = np.array([1.0 / p.prior[1] if p.prior is not None else 0.0 for p in specs])
     best = (cost.penalised(z_cur, u, pc, pw), u.copy(), S_cur, z_cur)

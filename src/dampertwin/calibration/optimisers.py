@@ -101,7 +101,7 @@ def run(problem, specs: list, settings, *, seed: int = 0, x0: dict | None = None
     if isinstance(settings, LeastSquaresSettings):
         return _least_squares(problem, specs, settings, seed, extra)
     if isinstance(settings, GaussNewtonSettings):
-        res = gauss_newton(problem, specs, settings, start=start, jacobian=jacobian, label=label)
+        res = gauss_newton(problem, specs, settings, start=start, jacobian=jacobian)
         res.specs, res.records, res.bound_hits = list(specs), problem, bound_hits(specs, res.best)
         return res
     if isinstance(settings, ConcurrentSettings):
