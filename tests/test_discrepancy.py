@@ -351,7 +351,7 @@ def test_low_velocity_curving_runs_filter_noise_and_split():
     gets a finite batch-means noise level near the sensor noise; a
     multi-run record is split as a checkerboard over velocity x current."""
     from dampertwin.discrepancy import features as F
-    from dampertwin.discrepancy.workflow import assign_folds
+    from dampertwin.discrepancy.decision import assign_folds
 
     cfg = entry.load_config(ROOT / "conf")
     rf = {"curving": {"min_peak_velocity": 0.12, "max_peak_velocity": 0.25, "currents": [1.6]}}
@@ -399,7 +399,8 @@ def test_flow_bench_records_pin_the_valves(tmp_path):
     noise model, a valve preload 30 % off does not; flow-bench records are
     always training data; a run that is no flow-bench valve is refused
     naming the file."""
-    from dampertwin.discrepancy.workflow import Problem, assign_folds, mean_z2
+    from dampertwin.discrepancy.decision import assign_folds, mean_z2
+    from dampertwin.discrepancy.problem import Problem
 
     base = {k: v for k, v in load_sample(ROOT / "conf" / "lab" / "lab2" / "sample.yaml").items() if not k.startswith("_")}
     s = hidden_sample(base)
@@ -476,7 +477,7 @@ def test_record_gate_is_a_bonferroni_chi_square_test():
     it stays near 1.2)."""
     from types import SimpleNamespace
 
-    from dampertwin.discrepancy.workflow import mean_z2, worst_record
+    from dampertwin.discrepancy.decision import mean_z2, worst_record
 
     sizes = [8] * 7 + [24] * 6 + [16] * 2
     units = [SimpleNamespace(labels=[None] * n, key=f"r{i}") for i, n in enumerate(sizes)]
@@ -511,7 +512,8 @@ def test_shared_transducer_gain_couples_the_records_of_one_chain(monkeypatch):
     from types import SimpleNamespace
 
     from dampertwin.discrepancy import features as F
-    from dampertwin.discrepancy.workflow import Problem, chi
+    from dampertwin.discrepancy.decision import chi
+    from dampertwin.discrepancy.problem import Problem
 
     rng = np.random.default_rng(3)
     sd = 1.0
@@ -553,7 +555,7 @@ def test_calibration_parameters_are_chosen_by_orthogonal_matching_pursuit():
     column (one valve's a, c and preload moving the same features) each
     align with it better than the second column does. Ranking the columns
     one by one (the old rule) takes the copies first."""
-    from dampertwin.discrepancy.workflow import select_params
+    from dampertwin.discrepancy.refits import select_params
 
     rng = np.random.default_rng(5)
     n = 60
@@ -580,7 +582,9 @@ def test_a_step_outside_the_valid_design_is_taken_the_other_way():
     valve_friction_current)."""
     from types import SimpleNamespace
 
-    from dampertwin.discrepancy.workflow import FitParam, Row, sensitivity
+    from dampertwin.calibration.ga import ParamSpec
+    from dampertwin.discrepancy.problem import Row
+    from dampertwin.discrepancy.refits import sensitivity
     from dampertwin.design.description import DesignError
 
     d = load(DESIGN)
@@ -589,7 +593,7 @@ def test_a_step_outside_the_valid_design_is_taken_the_other_way():
         d.with_overrides({"rod_friction.F_c": 85.0})
     pr = SimpleNamespace(simulate=lambda designs, label: [Row([np.array([[x["rod_friction.F_c"], x["oil.T"]]])])
                                                           for x in designs])
-    params = [FitParam("rod_friction.F_c", 0.0, 500.0, 60.0), FitParam("oil.T", 278.15, 323.15, d["oil.T"])]
+    params = [ParamSpec.auto("rod_friction.F_c", 0.0, 500.0, 60.0), ParamSpec.auto("oil.T", 278.15, 323.15, d["oil.T"])]
     S, hs = sensitivity(pr, d, params, 0.05, "test")
     assert hs[0] == -0.05 and hs[1] == 0.05
     assert np.allclose(S[1].S, [35.0, d["oil.T"]]) and np.all(np.isfinite(S[2].S))
@@ -629,7 +633,7 @@ def test_a_pair_replaces_the_best_single_only_when_it_describes_the_heldout_data
     held-out chi^2 + penalty is lower; nothing with a positive gain -> None.
     The gains of a single and of a pair start from different calibrations and
     are never compared with each other."""
-    from dampertwin.discrepancy.workflow import _pick
+    from dampertwin.discrepancy.decision import _pick
 
     gain = {"a": 2231.0, "b": 880.0, "b+a": 1405.0}     # the pair's gain is over a better-calibrated baseline
     score = {"a": 760.0, "b": 277.0, "b+a": 129.0}      # ... but it fits the held-out data best
@@ -657,7 +661,7 @@ def test_a_pair_is_eligible_only_when_both_its_effects_are_relevant():
     its gate). Seed-101 matrix, case 32: a hidden pressure-loaded seal was named second behind a
     rod_friction_asymmetric lead that won the first round by chance; inside the pair that lead moved no
     record past its gate."""
-    from dampertwin.discrepancy.workflow import _pair_eligible
+    from dampertwin.discrepancy.decision import _pair_eligible
 
     t = {"nested_gain": 61.6, "abs": 49.8, "alone_abs": {"lead": 114.6, "partner": 92.0},
          "partner_ratio": 2.51, "lead_ratio": 1.8}

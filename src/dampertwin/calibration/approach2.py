@@ -32,11 +32,13 @@ import pandas as pd
 from ..design import Design
 from ..errors import UserError
 from ..io import runs
-from ..parallel import DaskMap, release
+from ..parallel import DaskMap
 from . import sensitivity as sens
 from .approach1 import _Channel, _context, _need, _record_input, _records, specs_from_config, trapezoid_weights
-from .concurrent import BatchScorer, ConcurrentResult, GAGroup, run_concurrent
-from .ga import GASettings
+from .concurrent import ConcurrentSettings, GAGroup
+from .ga import FitResult, GASettings
+from .optimisers import run
+from .problem import GroupedAbs, Problem
 from ..sensors import sensor_lowpass
 
 WHERE = "conf/calibration/approach2.yaml"
@@ -196,10 +198,11 @@ def force_channel(bandwidth: float | None, fs: float) -> _Channel:
     return _Channel(("rod force [N]",), fn)
 
 
-class TrainingProblem:
+class TrainingProblem(Problem):
     """Design + training records + free parameters: residual force of a
     batch of parameter rows (one simulate_batch per record), the simulated
-    force (sensitivity output) and the concurrent-GA scorer (costs)."""
+    force (sensitivity output) and, once weighted (:meth:`weighted`), the
+    concurrent GAs' scores (cost :class:`~.problem.GroupedAbs`)."""
 
     def __init__(self, design: Design, measured: pd.DataFrame, specs, cutoff: float, bandwidth: float | None,
                  max_wall_s: float | None):
@@ -213,27 +216,30 @@ class TrainingProblem:
         self.run = np.concatenate([np.full(len(c[0]), n) for n, c in enumerate(self.cases)])
         self.quad = trapezoid_weights_per_case(self.cases)
         self.context = _context(design, measured)
+        self.cost = self.records.cost  # unweighted until weighted()
+
+    def evaluate(self, X: np.ndarray) -> tuple[np.ndarray, list]:
+        """Measured - simulated (sensor-filtered) force [N], (m, T), and the failure reasons."""
+        return self.records.evaluate(X)
 
     def simulated(self, X: np.ndarray) -> np.ndarray:
         """Simulated (sensor-filtered) force [N], (m, T); NaN rows for failures."""
-        R, _ = self.records.evaluate(X)
+        R, _ = self.evaluate(X)
         return self.measured[None, :] - R
 
-    def scorer(self, W: np.ndarray, n_weighted: int):
-        """Batch scores (m, G + 1): eq. 7.1 for the first ``n_weighted``
-        groups (rows of W), the unweighted integral for the other groups
-        (compliance, L1511) and, last, the unweighted integral (best-solution
-        tracker of Algorithm 1)."""
-        n_unweighted = 1
+    def weighted(self, W: np.ndarray) -> "TrainingProblem":
+        """Score eq. 7.1 for the valve groups (rows of ``W``), the unweighted
+        integral for the compliance group (L1511) and, last, the unweighted
+        integral (best-solution tracker of Algorithm 1)."""
+        self.cost = GroupedAbs(self.quad, W, n_unweighted=1)
+        return self
 
-        def fn(X):
-            R, why = self.records.evaluate(X)
-            A = np.abs(R)
-            J = sens.weighted_integrals(A, self.quad, W[:n_weighted])
-            total = sens.row_integrals(A, self.quad)  # row by row: the same bits in any batch
-            return np.column_stack([J, *([total] * n_unweighted), total]), why
-
-        return fn
+    def scores(self, X: np.ndarray) -> tuple[np.ndarray, list]:
+        """(m, G + 1) scores and the failure reasons: a failed row's NaN
+        residuals give NaN scores, which the concurrent GAs count with its
+        reason."""
+        R, why = self.evaluate(X)
+        return self.cost(R), why
 
 
 def trapezoid_weights_per_case(cases) -> np.ndarray:
@@ -299,7 +305,7 @@ def nominal_channels(design: Design, prob: TrainingProblem, channels, max_wall_s
 
 def fit(design: Design, measured: pd.DataFrame, cal: dict, W: np.ndarray, group_names: list[str],
         settings: GASettings, seed: int, *, bandwidth: float | None, checkpoint=None, scheduler=None,
-        progress: bool = True, free=None) -> tuple[ConcurrentResult, TrainingProblem]:
+        progress: bool = True, free=None) -> tuple[FitResult, TrainingProblem]:
     """Algorithm 1 on the training record: the valve groups weighted by
     ``W`` (rows in ``group_names`` order, from the sensitivity stage), the
     compliance unweighted. ``free``: the valve parameter keys the record
@@ -319,12 +325,9 @@ def fit(design: Design, measured: pd.DataFrame, cal: dict, W: np.ndarray, group_
         raise UserError(f"sensitivity weights have shape {W.shape}; the training record needs "
                         f"({len(groups)}, {len(prob.measured)}): rerun the sensitivity stage on the same record")
     x0 = {s.key: design[s.key] for s in specs}
-    scorer = BatchScorer(prob.scorer(W, len(groups)), len(groups) + 2, scheduler)
-    try:
-        res = run_concurrent(groups + [comp], scorer, settings, seed, x0=x0, checkpoint=checkpoint,
-                             label="approach 2 (concurrent GAs)", progress=progress, context=prob.context)
-    finally:
-        release(scorer)
+    res = run(prob.weighted(W), groups + [comp], ConcurrentSettings(settings), seed=seed, x0=x0,
+              checkpoint=checkpoint, scheduler=scheduler, label="approach 2 (concurrent GAs)", progress=progress,
+              context=prob.context)
     return res, prob
 
 

@@ -30,10 +30,11 @@ import pandas as pd
 from ..design import Design
 from ..io import runs
 from . import friction_fit as _ff
-from .approach1 import (SHIM_VALVES, Channel, fit_static_curve, fit_valve, force_chain_nominal, integral_abs_error,
+from .approach1 import (SHIM_VALVES, Channel, fit_static_curve, fit_valve, force_chain_nominal,
                         record_input, specs_from_config, through_sensor)
 from .friction_fit import nrmse
 from .ga import FitError, GASettings
+from .problem import Problem, RecordsAbs
 
 DEFAULT_POLISH = {"starts": 3, "max_nfev": 20}  # least-squares polish after the GA (calibration.polish)
 DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mutation_probability": 10,
@@ -41,10 +42,13 @@ DEFAULT_GA = {"population": 20, "reproduction_ratio": 80, "generations": 15, "mu
 VALVES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
 
 
-class RecordProblem:
+class RecordProblem(Problem):
     """Records of one submodel test -> batch simulations / eq. 6.x objective
     of a design population (the GA fits of compliance and top mount, the
-    NRMSE report of every GA fit)."""
+    NRMSE report of every GA fit). A calibration-core problem once its
+    fitted ``keys`` are bound (:meth:`bind`): residuals measured - simulated
+    over the fitted file's records (file 0), cost
+    :class:`~.problem.RecordsAbs`."""
 
     def __init__(self, design: Design, configuration: str, channel, cases_per_file: list, sim_kw: dict,
                  nuisance: dict | None = None):
@@ -52,6 +56,7 @@ class RecordProblem:
         self.files = cases_per_file  # [(name, [(t, measured, excitation, extra), ...]), ...]
         self.sim_kw = sim_kw
         self.nuisance = dict(nuisance or {})  # nominal values of fitted sensor.* keys (the bench's chain)
+        self.keys: list[str] = []
 
     def nominal(self, key: str) -> float:
         """Start value of a fitted key: the design's, or a sensor.* key's documented one."""
@@ -78,14 +83,24 @@ class RecordProblem:
                 out[fi].append(sim)
         return out
 
+    def bind(self, keys) -> "RecordProblem":
+        """Fit ``keys`` (the columns of a parameter row) on the fitted file (file 0)."""
+        self.keys = list(keys)
+        self.cost = RecordsAbs([c[0] for c in self.files[0][1]])
+        return self
+
+    def evaluate(self, X: np.ndarray) -> tuple[np.ndarray, list]:
+        """Measured - simulated over the fitted file's records, row by parameter row; a reason per failed row."""
+        sims = self.simulate([dict(zip(self.keys, row)) for row in np.atleast_2d(X)], which={0})
+        R = np.hstack([meas[None, :] - sim for (_, meas, _, _), sim in zip(self.files[0][1], sims[0])])
+        return R, [None if np.all(np.isfinite(r)) else "simulation failed" for r in R]
+
     def objective(self, keys):
         """Batch objective: sum over the fitted file's records of int |measured - simulated| dt (eq. 6.1-6.3)."""
+        self.bind(keys)
+
         def f(X):
-            sims = self.simulate([dict(zip(keys, row)) for row in X], which={0})
-            J = np.zeros(len(X))
-            for (t, meas, _, _), sim in zip(self.files[0][1], sims[0]):
-                J += np.array([integral_abs_error(t, meas, s) for s in sim])
-            return J
+            return self.cost(self.evaluate(X)[0])
 
         return f
 

@@ -28,14 +28,14 @@ Engineering, as :func:`dampertwin.calibration.ga.run_ga`:
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
 
 from ..checkpoint import require_store
-from .ga import INFEASIBLE, NEAR_SPREAD, FitError, GASettings, ParamSpec, bound_hits
+from .ga import INFEASIBLE, NEAR_SPREAD, FitError, FitResult, GASettings, ParamSpec, bound_hits
 
 
 @dataclass(frozen=True)
@@ -74,36 +74,32 @@ class BatchScorer:
         return np.vstack([o[0] for o in outs]), [w for o in outs for w in o[1]]
 
 
-@dataclass
-class ConcurrentResult:
-    best: dict[str, float]  # best individual by the unweighted objective
-    best_objective: float  # its unweighted objective
-    best_group_objectives: dict[str, float]  # its per-group objectives
-    best_evaluation: int  # 1-based index of the evaluation (simulation) that found it ("iteration 2639")
-    start_objective: float  # unweighted objective of x0 (nan without x0)
-    history: pd.DataFrame  # per generation: best / mean per group, best unweighted in population and so far
-    failed: int
-    evaluations: int
-    failures: dict = field(default_factory=dict)
-    groups: list = field(default_factory=list)
-    bound_hits: list = field(default_factory=list)  # best values on an end of their search interval (ga.bound_hits)
+@dataclass(frozen=True)
+class ConcurrentSettings:
+    """The concurrent GAs of :func:`.optimisers.run`: the GA settings each
+    group's GA runs with (thesis tables 7.x: population, reproduction ratio,
+    generations, mutation)."""
+
+    ga: GASettings
 
 
 def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASettings, seed: int, *,
                    x0: dict[str, float] | None = None, checkpoint=None,
-                   label: str = "concurrent GA", progress: bool = True, context: str = "") -> ConcurrentResult:
+                   label: str = "concurrent GA", progress: bool = True, context: str = "") -> FitResult:
     """Algorithm 1. ``score`` maps combined parameter rows (columns: the
     groups' specs in order) to one objective per group plus the unweighted
     one. ``x0`` (the nominal design) is member 0 of every group. A
     checkpoint is reused only if groups, settings, seed, x0 and ``context``
-    match."""
+    match. The result (the core's :class:`~.ga.FitResult`) is the best
+    individual by the unweighted objective, with its per-group objectives
+    (``best_group_objectives``) and the evaluation that found it
+    (``best_evaluation``)."""
     import pygad
     from ..progress import progress as tqdm
 
     groups = list(groups)
     G = len(groups)
     sizes = [len(g.specs) for g in groups]
-    cuts = np.cumsum([0] + sizes)
     specs = [s for g in groups for s in g.specs]
     P = settings.population
     cache: dict[bytes, np.ndarray] = {}
@@ -134,31 +130,14 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
                 found_at[keys[i]] = counters["evals"]
         return np.array([cache[k] for k in keys])
 
-    rng = np.random.default_rng(seed)
-    pops = [rng.uniform(0, 1, (P, n)) for n in sizes]
-    g0 = None
-    if x0 is not None:
-        g0 = np.array([s.to_gene(x0[s.key]) for s in specs])
-        near = P // 2
-        for gi, pop in enumerate(pops):
-            part = g0[cuts[gi]:cuts[gi + 1]]
-            pop[1:near] = np.clip(part + NEAR_SPREAD * rng.standard_normal((near - 1, sizes[gi])), 0, 1)
-            pop[0] = part
+    pops, g0 = _first_populations(np.random.default_rng(seed), specs, sizes, P, x0)
     start_gen, rows = 0, []
     store = require_store(checkpoint)  # no file I/O here: the stage passes a store
-    sig = json.dumps({"groups": [[g.name, [s.__dict__ for s in g.specs]] for g in groups], "ga": settings.__dict__,
+    sig = json.dumps({"groups": [[g.name, [s.state() for s in g.specs]] for g in groups], "ga": settings.__dict__,
                       "seed": seed, "x0": x0, "context": context}, sort_keys=True)
     z = store.load() if store else None
-    if z is not None:
-        if str(z["sig"]) == sig:
-            pops = [z[f"pop{gi}"] for gi in range(G)]
-            start_gen = int(z["gen"])
-            rows = json.loads(str(z["history"]))
-            for k, s, n in zip(z["cache_keys"], z["cache_vals"], z["found_at"]):
-                cache[bytes(k)] = np.asarray(s, float)
-                found_at[bytes(k)] = int(n)
-            counters["failed"], counters["evals"] = int(z["failed"]), int(z["evals"])
-            failures.update(json.loads(str(z["failures"])))
+    if z is not None and str(z["sig"]) == sig:
+        pops, start_gen, rows = _restore(z, G, cache, found_at, counters, failures)
     parents = max(2, int(round(P * settings.reproduction_ratio / 100.0)))
 
     def record(gen: int, S: np.ndarray) -> None:
@@ -213,10 +192,39 @@ def run_concurrent(groups: Sequence[GAGroup], score: BatchScorer, settings: GASe
     gb = np.frombuffer(best_key, dtype=float)
     best = {s.key: float(s.to_value(gb[j])) for j, s in enumerate(specs)}
     start = float(objective(g0[None, :])[0, -1]) if g0 is not None else float("nan")
-    return ConcurrentResult(best, float(cache[best_key][-1]),
-                            {g.name: float(cache[best_key][gi]) for gi, g in enumerate(groups)},
-                            found_at[best_key], start, pd.DataFrame(rows), counters["failed"], counters["evals"],
-                            dict(failures), [g.name for g in groups], bound_hits(specs, best))
+    return FitResult(best, float(cache[best_key][-1]), start, pd.DataFrame(rows), counters["failed"],
+                     counters["evals"], dict(failures), bound_hits=bound_hits(specs, best),
+                     groups=[g.name for g in groups],
+                     best_group_objectives={g.name: float(cache[best_key][gi]) for gi, g in enumerate(groups)},
+                     best_evaluation=found_at[best_key])
+
+
+def _first_populations(rng, specs: list, sizes: list, P: int, x0: dict | None) -> tuple[list, np.ndarray | None]:
+    """Each group's first population (uniform in its genes) and, with the
+    nominal design ``x0``, its genes ``g0``: member 0 of every group, half of
+    each population around it."""
+    cuts = np.cumsum([0] + sizes)
+    pops = [rng.uniform(0, 1, (P, n)) for n in sizes]
+    g0 = None
+    if x0 is not None:
+        g0 = np.array([s.to_gene(x0[s.key]) for s in specs])
+        near = P // 2
+        for gi, pop in enumerate(pops):
+            part = g0[cuts[gi]:cuts[gi + 1]]
+            pop[1:near] = np.clip(part + NEAR_SPREAD * rng.standard_normal((near - 1, sizes[gi])), 0, 1)
+            pop[0] = part
+    return pops, g0
+
+
+def _restore(z, G: int, cache: dict, found_at: dict, counters: dict, failures: dict) -> tuple[list, int, list]:
+    """A checkpoint's state (``_state``) back into the caches and counters; returns (populations,
+    next generation, history rows)."""
+    for k, s, n in zip(z["cache_keys"], z["cache_vals"], z["found_at"]):
+        cache[bytes(k)] = np.asarray(s, float)
+        found_at[bytes(k)] = int(n)
+    counters["failed"], counters["evals"] = int(z["failed"]), int(z["evals"])
+    failures.update(json.loads(str(z["failures"])))
+    return [z[f"pop{gi}"] for gi in range(G)], int(z["gen"]), json.loads(str(z["history"]))
 
 
 def _state(pops, gen, rows, cache, found_at, counters, sig, failures) -> dict:
@@ -251,4 +259,4 @@ def progress_figure(history: pd.DataFrame, groups: Sequence[str], title: str = "
     return fig
 
 
-__all__ = ["GAGroup", "BatchScorer", "ConcurrentResult", "run_concurrent", "progress_figure"]
+__all__ = ["GAGroup", "BatchScorer", "ConcurrentSettings", "run_concurrent", "progress_figure"]

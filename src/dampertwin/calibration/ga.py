@@ -43,19 +43,32 @@ NEAR_SPREAD = 0.1  # gene-space std of the initial members placed around the nom
 class ParamSpec:
     """A fitted quantity: design key, search bounds (SI), scale of its
     normalised coordinate in [0, 1] (the GA's gene, the Gauss-Newton refit's
-    u) and, optionally, its start value. The one parameter spec of the
-    calibration core (the discrepancy refits build theirs with :meth:`auto`)."""
+    u), optionally its start value and its prior. The one parameter spec of
+    the calibration core (the discrepancy refits build theirs with
+    :meth:`auto`)."""
 
     key: str
     lo: float
     hi: float
     scale: str = "lin"  # "lin" | "log" (log needs lo > 0)
     start: float | None = None  # start value [SI] (None: the design's)
+    # Gaussian prior (value [SI], sigma in the normalised coordinate u): the Gauss-Newton refits' Tikhonov
+    # rows (u - u(value)) / sigma; None: no prior (the GAs search the bounds alone)
+    prior: tuple[float, float] | None = None
 
     @classmethod
-    def auto(cls, key: str, lo: float, hi: float, start: float | None = None) -> "ParamSpec":
+    def auto(cls, key: str, lo: float, hi: float, start: float | None = None,
+             prior: tuple[float, float] | None = None) -> "ParamSpec":
         """Logarithmic when the bounds are positive and span > 2 decades."""
-        return cls(key, lo, hi, "log" if lo > 0 and hi / lo > 100 else "lin", start)
+        return cls(key, lo, hi, "log" if lo > 0 and hi / lo > 100 else "lin", start, prior)
+
+    def state(self) -> dict:
+        """The fields as a dict for a checkpoint's signature (``prior`` only when set: a fit without
+        priors keeps the signature it had before specs carried them)."""
+        d = dict(self.__dict__)
+        if d["prior"] is None:
+            del d["prior"]
+        return d
 
     @property
     def log(self) -> bool:
@@ -133,6 +146,13 @@ class GASettings:
 
 @dataclass
 class FitResult:
+    """What every optimiser of the core returns (:func:`.optimisers.run`):
+    the fitted values, the objective at them and at the start, the objective
+    history, the failed members and their reasons; the optional fields are
+    set by the optimisers that have them (polish, uncertainty, the
+    concurrent GAs' per-group objectives, the Gauss-Newton's output and
+    Jacobian at the fit)."""
+
     best: dict[str, float]
     best_objective: float
     start_objective: float
@@ -147,6 +167,17 @@ class FitResult:
     specs: list = field(default_factory=list)  # the fitted quantities (set by the approach-1 fits)
     records: object = None  # calibration.polish.Records of the fit: re-evaluates its objective
     bound_hits: list = field(default_factory=list)  # fitted values on an end of their search interval (bound_hits)
+    # concurrent GAs (calibration.concurrent): the groups, the best individual's objective per group and the
+    # 1-based index of the evaluation (simulation) that found it ("iteration 2639")
+    groups: list = field(default_factory=list)
+    best_group_objectives: dict = field(default_factory=dict)
+    best_evaluation: int | None = None
+    # Gauss-Newton (calibration.gauss_newton): the problem's output at the fit (the simulated features), the
+    # Broyden-updated Jacobian (key -> dz/du) and, set by the caller, the fitted model and its overrides
+    simulated: object = None
+    jacobian: dict = field(default_factory=dict)
+    design: object = None
+    overrides: dict = field(default_factory=dict)
 
 
 def bound_hits(specs: list[ParamSpec], values: dict[str, float], *, tol: float = NEAR_BOUND,
@@ -252,7 +283,7 @@ def run_ga(specs: list[ParamSpec], evaluate: Evaluator, settings: GASettings, se
         pop[0] = g0
     start_gen, rows = 0, []
     store = require_store(checkpoint)
-    sig = json.dumps({"specs": [s.__dict__ for s in specs], "ga": settings.__dict__, "seed": seed, "x0": x0,
+    sig = json.dumps({"specs": [s.state() for s in specs], "ga": settings.__dict__, "seed": seed, "x0": x0,
                       "context": context}, sort_keys=True)
     z = store.load() if store else None
     if z is not None:

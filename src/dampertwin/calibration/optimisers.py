@@ -1,19 +1,35 @@
-"""One entry to the calibration core's optimisers (issue 33):
+"""The calibration core's one entry (issue 33):
 ``run(problem, specs, settings) -> FitResult``.
 
-- ``GASettings``: the pygad GA (:func:`~.ga.run_ga`, thesis 5.1.2) on the
-  problem's batch objective, then, with ``polish``, the least-squares polish
-  from its best members (:func:`~.polish.polish`: the study's approach 1);
-- ``LeastSquaresSettings``: bounded least squares on the problem's
-  residuals from Latin-hypercube starts in the unit box of the specs (the
-  friction fit).
+A *problem* (:class:`~.problem.Problem`) maps parameter rows to residual
+rows with a failure reason per member and scores them with its
+:class:`~.problem.Cost`; *specs* are the one parameter spec
+(:class:`~.ga.ParamSpec`: key, bounds, scale, start, prior); the type of
+*settings* names the optimiser:
 
-A *problem* is a :class:`~.polish.Records` (``residuals(X)`` of parameter
-rows, ``scores(X)``: eq. 6.x objective and failure reason per row) or, for
-the GA alone, a batch objective ``f(X) -> values | (values, reasons)``.
-The concurrent GAs of approach 2 (:func:`~.concurrent.run_concurrent`) and
-the discrepancy refits' Gauss-Newton keep their own entry points (their
-problems score several objectives per simulation / penalised residuals).
+- :class:`~.ga.GASettings`: the pygad GA (:func:`~.ga.run_ga`, thesis
+  5.1.2) on ``problem.scores`` (or a bare batch objective ``f(X) -> values
+  | (values, reasons)``), then, with ``polish_settings``, the least-squares
+  polish from its best members (:func:`~.polish.polish`): approach 1 and
+  ``dampertwin fit``;
+- :class:`~.concurrent.ConcurrentSettings`: the concurrent,
+  sensitivity-weighted GAs of approach 2 (thesis Algorithm 1,
+  :func:`~.concurrent.run_concurrent`); ``specs`` is then the list of
+  :class:`~.concurrent.GAGroup` (one GA each) and ``problem.scores`` gives
+  one objective per group plus the unweighted one
+  (:class:`~.problem.GroupedAbs`);
+- :class:`LeastSquaresSettings`: bounded least squares on
+  ``problem.residuals`` from Latin-hypercube starts in the unit box of the
+  specs (the friction fit);
+- :class:`~.gauss_newton.GaussNewtonSettings`: bounded Levenberg-Marquardt
+  with Broyden updates on a whitened chi^2 with the specs' priors
+  (:class:`~.problem.WhitenedChi2`): the discrepancy workflow's calibration
+  refit, candidate refits and recalibrations.
+
+Every optimiser returns the core's :class:`~.ga.FitResult` (values,
+objective history, failures, bound hits, and what that optimiser adds).
+GA checkpoints go to a store passed in (:mod:`dampertwin.checkpoint`): no
+file I/O in the optimisers.
 """
 
 from __future__ import annotations
@@ -24,7 +40,9 @@ import numpy as np
 import pandas as pd
 
 from ..parallel import release
+from .concurrent import BatchScorer, ConcurrentSettings, run_concurrent
 from .ga import Evaluator, FitResult, GASettings, ParamSpec, bound_hits, run_ga
+from .gauss_newton import GaussNewtonSettings, gauss_newton
 from .polish import PolishSettings, polish
 
 
@@ -68,16 +86,33 @@ def _least_squares(problem, specs: list[ParamSpec], settings: LeastSquaresSettin
     return res
 
 
-def run(problem, specs: list[ParamSpec], settings, *, seed: int = 0, x0: dict | None = None,
+def run(problem, specs: list, settings, *, seed: int = 0, x0: dict | None = None,
         polish_settings: PolishSettings | None = None, checkpoint=None, scheduler: str | None = None,
-        label: str = "fit", progress: bool = False, context: str = "", extra=()) -> FitResult:
+        label: str = "fit", progress: bool = False, context: str = "", extra=(), start=None,
+        jacobian: dict | None = None) -> FitResult:
     """Minimise ``problem`` over ``specs`` with the optimiser ``settings``
     name. ``x0``: the nominal values (a GA member, a polish start);
-    ``checkpoint``: a store for the GA's state (:mod:`dampertwin.checkpoint`); ``extra``: further
-    unit-box start points of the least squares. The result lists the
-    fitted values that end on their search bounds (``bound_hits``)."""
+    ``checkpoint``: a store for the GAs' state (:mod:`dampertwin.checkpoint`);
+    ``scheduler``: a Dask address for the GAs' populations; ``extra``:
+    further unit-box start points of the least squares; ``start`` /
+    ``jacobian``: the Gauss-Newton's known residual and output at the start
+    / Jacobian columns. The result lists the fitted values that end on
+    their search bounds (``bound_hits``)."""
     if isinstance(settings, LeastSquaresSettings):
         return _least_squares(problem, specs, settings, seed, extra)
+    if isinstance(settings, GaussNewtonSettings):
+        res = gauss_newton(problem, specs, settings, start=start, jacobian=jacobian)
+        res.specs, res.records, res.bound_hits = list(specs), problem, bound_hits(specs, res.best)
+        return res
+    if isinstance(settings, ConcurrentSettings):
+        scorer = BatchScorer(problem.scores, len(specs) + 1, scheduler)
+        try:
+            res = run_concurrent(specs, scorer, settings.ga, seed, x0=x0, checkpoint=checkpoint, label=label,
+                                 progress=progress, context=context)
+        finally:
+            release(scorer)
+        res.specs, res.records = [s for g in specs for s in g.specs], problem
+        return res
     if not isinstance(settings, GASettings):
         raise TypeError(f"run: unknown optimiser settings {type(settings).__name__}")
     objective = problem.scores if hasattr(problem, "scores") else problem
@@ -94,4 +129,4 @@ def run(problem, specs: list[ParamSpec], settings, *, seed: int = 0, x0: dict | 
     return res
 
 
-__all__ = ["LeastSquaresSettings", "run"]
+__all__ = ["ConcurrentSettings", "GaussNewtonSettings", "LeastSquaresSettings", "run"]

@@ -25,7 +25,7 @@ from typing import Callable
 import numpy as np
 
 from .ga import FitResult, ParamSpec
-from .sensitivity import row_integrals
+from .problem import Problem, WeightedAbs
 from .uncertainty import analyse, central_jacobian, fd_jacobian, other_optima
 
 F_SCALE_FRACTION = 0.1  # soft_l1 f_scale as a fraction of the median |weighted residual| at the start
@@ -58,10 +58,11 @@ class PolishSettings:
                    float(c.get("min_distance", 0.05)))
 
 
-class Records:
+class Records(Problem):
     """A fit's measured records against batched simulations: residuals
     e = measured - simulated, concatenated over records, and the eq. 6.x
-    objective sum_i w_i |e_i| (trapezoid weights w_i [s])."""
+    objective sum_i w_i |e_i| (trapezoid weights w_i [s], the
+    :class:`~.problem.WeightedAbs` cost)."""
 
     def __init__(self, residuals: Callable, weights: np.ndarray, blocks: list[int] | None = None,
                  precise: Callable | None = None):
@@ -72,16 +73,17 @@ class Records:
         # the uncertainty's Jacobian; None: ``residuals`` are exact, e.g. analytic)
         self._residuals = residuals
         self._precise = precise
-        self.weights = np.asarray(weights, float)
+        self.cost = WeightedAbs(weights)
         self.blocks = None if blocks is None else [int(b) for b in blocks]
+
+    @property
+    def weights(self) -> np.ndarray:
+        return self.cost.weights
 
     def evaluate(self, X: np.ndarray) -> tuple[np.ndarray, list]:
         out = self._residuals(np.atleast_2d(X))
         R, why = out if isinstance(out, tuple) else (out, [None] * len(out))
         return np.asarray(R, float), list(why)
-
-    def residuals(self, X: np.ndarray) -> np.ndarray:
-        return self.evaluate(X)[0]
 
     def precise_residuals(self, X: np.ndarray) -> np.ndarray:
         """Residuals from simulations at the uncertainty's tight tolerance."""
@@ -89,16 +91,6 @@ class Records:
             return self.residuals(X)
         out = self._precise(np.atleast_2d(X))
         return np.asarray(out[0] if isinstance(out, tuple) else out, float)
-
-    def scores(self, X: np.ndarray) -> tuple[np.ndarray, list]:
-        """(objective per row, reason per failed row): the GA's batch objective."""
-        R, why = self.evaluate(X)
-        J = row_integrals(np.abs(R), self.weights)  # row by row: the same bits in any batch (a cluster's chunks)
-        ok = np.all(np.isfinite(R), axis=1)
-        return np.where(ok, J, np.nan), [w or (None if o else "non-finite residual") for w, o in zip(why, ok)]
-
-    def objective(self, X: np.ndarray) -> np.ndarray:
-        return self.scores(X)[0]
 
 
 def values(specs: list[ParamSpec], G: np.ndarray) -> np.ndarray:

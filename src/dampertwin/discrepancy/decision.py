@@ -1,0 +1,127 @@
+"""The discrepancy workflow's statistics and decisions: the training /
+held-out folds, the whitened chi^2 and its per-record gate, where the
+residual lies, and the tests that pick a named effect or pair. No I/O here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..calibration.problem import chi
+from .problem import Problem
+
+
+# report wording only: a held-out chi^2 within 10 % of its feature count is "at or near noise level",
+# where a closed fraction of the (tiny) excess reads as an absurd percentage (-1666 %)
+NEAR_NOISE = 1.1
+
+
+def mean_z2(z: np.ndarray, mask: np.ndarray) -> float:
+    n = int(np.sum(mask))
+    return chi(z, mask) / max(n, 1)
+
+
+def worst_record(problem: "Problem", z: np.ndarray, mask: np.ndarray, alpha: float) -> tuple[float, str]:
+    """Per-record chi-square test of the whitened residual: the largest ratio
+    (sum of z^2 over a record's features) / (its chi-square quantile at
+    1 - alpha / records, Bonferroni) and that record. A ratio above 1 is a
+    disagreement localised in one record (the slowest curving run, say) that
+    the mean over every feature would dilute; under the noise model the
+    chance that any agreeing record exceeds it is <= alpha."""
+    from scipy.stats import chi2 as chi2_dist
+
+    blocks, k = [], 0
+    for u in problem.units:
+        n = len(u.labels)
+        m = mask[k:k + n]
+        if m.any():
+            blocks.append((u.key, z[k:k + n][m]))
+        k += n
+    worst, key = 0.0, ""
+    q = 1.0 - alpha / max(len(blocks), 1)
+    quant = {n: float(chi2_dist.ppf(q, n)) for n in {len(v) for _, v in blocks}}
+    for name, v in blocks:
+        val = float(np.sum(v * v)) / quant[len(v)] if np.all(np.isfinite(v)) else math.inf
+        if val > worst:
+            worst, key = val, name
+    return worst, key
+
+
+def assign_folds(units: list) -> None:
+    """Training / held-out records: alternate over the damper / module
+    records in test order, so held-out data are other velocities / currents /
+    cases / tests than the fitted ones. Within a multi-run record (curving:
+    velocities x currents) the runs alternate over velocity and the pattern
+    flips from one current to the next (a checkerboard), so every current
+    and, with two or more runs per current, low and higher velocities are in
+    both sets. Flow-bench records (the valves alone) are always training
+    data: they pin the valve parameters in every refit. A single record is
+    both (said in the report)."""
+    i = 0
+    groups: dict = {}
+    for u in units:
+        if u.configuration == "valve":
+            u.fold = "train"
+            continue
+        groups.setdefault((u.test, u.case), []).append(u)
+    for grp in groups.values():
+        currents = sorted({round(u.current, 3) for u in grp})
+        by_cur = {c: sorted((u for u in grp if round(u.current, 3) == c), key=lambda u: u.frequency or 0.0)
+                  for c in currents}
+        for k, c in enumerate(currents):
+            for j, u in enumerate(by_cur[c]):
+                u.fold = "train" if (i + j + k) % 2 == 0 else "heldout"
+        i += len(grp)
+    if len(units) == 1:
+        units[0].fold = "train"
+
+
+def _gap(z, mask) -> float:
+    """RMS noise-scaled residual of the features in ``mask``."""
+    return math.sqrt(mean_z2(z, mask)) if np.isfinite(mean_z2(z, mask)) else math.inf
+
+
+def _where(problem: Problem, z: np.ndarray, dcfg: dict) -> list:
+    """Bins / bands whose |residual| / noise exceeds ``where_z``: test, case
+    (the file's case), phase_or_band (the run, when the file holds several,
+    the channel and the phase bin or band), excess (|residual| / noise)."""
+    n_runs: dict = {}
+    for u in problem.units:
+        n_runs[(u.test, u.case)] = n_runs.get((u.test, u.case), 0) + 1
+    out = []
+    for (test, case, run, ch, ph), v in zip(problem.labels, z):
+        if np.isfinite(v) and abs(v) >= float(dcfg["where_z"]):
+            where = f"{ch}: {ph}" if n_runs[(test, case)] == 1 else f"{run} {ch}: {ph}"
+            out.append({"test": test, "case": case, "phase_or_band": where, "excess": round(float(abs(v)), 2)})
+    out.sort(key=lambda r: -r["excess"])
+    return out[: int(dcfg["where_max"])]
+
+
+def _pair_eligible(t: dict) -> bool:
+    """A pair's tests (``pair_test`` entry): (a) the partner's held-out chi^2
+    drop over the nested reference exceeds its penalty (``nested_gain`` > 0);
+    (b) the pair's held-out chi^2 + penalty (``abs``) is below each of its
+    effects refitted alone (``alone_abs``); (c) each effect at its fitted
+    values moves some record past its gate (``partner_ratio``, ``lead_ratio``
+    >= 1; absent when the relevance tests are switched off)."""
+    return (t["nested_gain"] > 0 and t["abs"] < min(t["alone_abs"].values())
+            and t.get("partner_ratio", 1.0) >= 1.0 and t.get("lead_ratio", 1.0) >= 1.0)
+
+
+def _pick(gain: dict, score: dict):
+    """The winner among candidates with a positive held-out gain: the single
+    effect with the largest gain over its own calibration (``gain``), replaced
+    by a pair when a pair's absolute held-out chi^2 + penalty (``score``) is
+    lower than that single's: the pair then describes the held-out data better
+    than the best one-effect model, its partner having passed the nested test
+    (eligibility). None when no candidate gains."""
+    singles = [n for n in gain if "+" not in n and gain[n] > 0]
+    best = max(singles, key=gain.get) if singles else None
+    pairs = [n for n in gain if "+" in n and gain[n] > 0 and (best is None or score[n] < score[best])]
+    return min(pairs, key=score.get) if pairs else best
+
+
+
+__all__ = ["NEAR_NOISE", "chi", "mean_z2", "worst_record", "assign_folds"]
