@@ -4,6 +4,7 @@ round trip, overrides."""
 from __future__ import annotations
 
 import copy
+import functools
 import math
 from pathlib import Path
 
@@ -254,6 +255,12 @@ NUMS = sorted(BY_NUMBER)
 FIELDS = ["no", "name", "type", "value", "unit", "bounds", "group", "delete"]
 
 
+@functools.cache
+def _baseline_doc() -> dict:
+    """The baseline document, parsed once for the fuzzer (each example corrupts a deep copy)."""
+    return yaml.safe_load(BASELINE.read_text())
+
+
 @st.composite
 def corruption(draw):
     no = draw(st.sampled_from(NUMS))
@@ -287,7 +294,7 @@ def corruption(draw):
 @given(corruption())
 def test_random_single_field_corruption_is_rejected(tmp_path_factory, c):
     no, field, bad = c
-    doc = yaml.safe_load(BASELINE.read_text())
+    doc = copy.deepcopy(_baseline_doc())
     e = entry(doc, no)
     if field == "delete":
         del e[bad]
