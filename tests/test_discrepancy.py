@@ -2,8 +2,7 @@
 a control says `none`, a clearly isolable hidden effect (piston leakage at a
 large gap) is named, an artefact outside the library (load-cell crosstalk)
 is `unexplained`, the augmented design loads and round-trips, bad input
-exits 2 naming the file; the hidden oil heating, pressure-loaded seal and the
-null-effect regression are `slow` (minutes). CI budget: the tests use compliance + two
+exits 2 naming the file. CI budget: the tests use compliance + two
 mono-sine cases (no random record) and one lab generation per sample."""
 
 from __future__ import annotations
@@ -158,7 +157,6 @@ def test_hidden_leakage_is_named(leak, tmp_path):
     assert d.hash() == loads(d.dumps(), base_dir=str(ROOT / "conf" / "design")).hash()
 
 
-@pytest.mark.slow  # two warm-up labs and two workflow runs: 128 s on the 2-core machine at load 4
 def test_oil_heating_is_named_on_warm_up_records(tmp_path):
     """oil_thermal moves the force of seconds-long records by < 1 N, so only the warm-up test's
     thermocouple shows it. Hidden at its typical magnitude, the temperature rise names the effect
@@ -180,7 +178,6 @@ def test_oil_heating_is_named_on_warm_up_records(tmp_path):
     assert doc["verdict"] == "none", doc
 
 
-@pytest.mark.slow  # two friction labs and two workflow runs: 54 s at load 4
 def test_pressure_loaded_seal_is_named_on_friction_records(tmp_path):
     """On the standard tests a seal that rubs harder with the chamber pressure is a ~2 % force gain plus a
     Coulomb step (the calibration absorbs it). The friction test strokes the damper slowly at two gas
@@ -608,7 +605,6 @@ CI_RECORDS = [("flowbench", v) for v in ("piston_rebound", "piston_intake", "bas
     ("random", "baseline_1.6"), ("curving", "baseline")]
 
 
-@pytest.mark.slow  # a five-test lab and a full ci workflow: 68 s at load 4
 def test_a_null_effect_is_not_credited_with_the_calibrations_further_refit(tmp_path):
     """Regression (bench/discrepancy.py --seed 71, control 1): a part with small valve, top-mount and
     rod-friction deviations and no hidden effect; the calibration refit leaves one curving run at 1.7x
