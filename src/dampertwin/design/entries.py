@@ -4,9 +4,11 @@ effect parameters, and the error listing every problem of a description."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Mapping
 
 from ..errors import UserError
+
+TEXT_FIELDS = ("symbol", "description", "source")  # the free-text fields of an entry
 
 
 class DesignError(UserError):
@@ -72,3 +74,22 @@ class EffectParameter:
     @property
     def key(self) -> str:
         return f"{self.effect}.{self.name}"
+
+
+def check_fields(item: Mapping, required: tuple, label: str, errors: list[str], optional: tuple = ()) -> None:
+    """Append to ``errors`` one problem per key of ``item`` that is neither in
+    ``required`` nor in ``optional`` (naming the expected fields) and one per
+    ``required`` field missing; ``label`` names the file and the entry."""
+    for k in item:
+        if k not in required and k not in optional:
+            errors.append(f"{label}: unknown field {k!r}; expected {', '.join(required + optional)}")
+    for k in required:
+        if k not in item:
+            errors.append(f"{label}: missing field {k!r}")
+
+
+def check_strings(item: Mapping, keys: tuple, label: str, errors: list[str]) -> None:
+    """Append to ``errors`` one problem per field of ``keys`` present in ``item`` but not a string."""
+    for k in keys:
+        if k in item and not isinstance(item[k], str):
+            errors.append(f"{label}: field {k!r} must be a string")

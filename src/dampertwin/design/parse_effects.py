@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from .entries import EffectParameter
+from .entries import TEXT_FIELDS, EffectParameter, check_fields, check_strings
 from .parse_params import _is_num
 from .schema import EFFECT_PARAMETERS, EFFECTS
 
@@ -57,15 +57,8 @@ def _parse_effect_parameters(items, effects, where, errors) -> dict[str, EffectP
             errors.append(f"{label}: duplicated")
             continue
         n_err = len(errors)
-        for k in item:
-            if k not in EFFECT_PARAM_FIELDS + ("bounds",):
-                errors.append(f"{label}: unknown field {k!r}; expected {', '.join(EFFECT_PARAM_FIELDS)}, bounds")
-        for k in EFFECT_PARAM_FIELDS:
-            if k not in item:
-                errors.append(f"{label}: missing field {k!r}")
-        for k in ("symbol", "description", "source"):
-            if k in item and not isinstance(item[k], str):
-                errors.append(f"{label}: field {k!r} must be a string")
+        check_fields(item, EFFECT_PARAM_FIELDS, label, errors, optional=("bounds",))
+        check_strings(item, TEXT_FIELDS, label, errors)
         unit_decl, rng = EFFECT_PARAMETERS[key]
         ptype = item.get("type")
         if "type" in item and ptype not in EFFECT_PARAM_TYPES:

@@ -9,7 +9,7 @@ import os
 from pathlib import Path
 
 from . import architecture as _arch
-from .entries import Constant, Parameter
+from .entries import TEXT_FIELDS, Constant, Parameter, check_fields, check_strings
 from .pqmap import PQMap, _find_map, _inside, _read_map
 from .schema import BY_NUMBER, CONSTANT_TYPES, CONSTANTS, ORDERED, PARAMETERS, POSITIVE_SUMS, RANGES, SI_UNITS, TYPES
 
@@ -62,19 +62,12 @@ def _parse_parameters(items, where, base_dir, errors, known_map=None,
             continue
         seen[no] = idx
         n_err = len(errors)
-        for k in item:
-            if k not in PARAM_FIELDS + ("bounds",):
-                errors.append(f"{label}: unknown field {k!r}; expected {', '.join(PARAM_FIELDS)}, bounds")
-        for k in PARAM_FIELDS:
-            if k not in item:
-                errors.append(f"{label}: missing field {k!r}")
+        check_fields(item, PARAM_FIELDS, label, errors, optional=("bounds",))
         if nm is not None and nm != spec.name:
             errors.append(f"{label}: name {nm!r} does not match table 5.1 no. {no}; expected {spec.name!r}")
         if item.get("group") is not None and item.get("group") != spec.group:
             errors.append(f"{label}: group {item.get('group')!r}; expected {spec.group!r}")
-        for k in ("symbol", "description", "source"):
-            if k in item and not isinstance(item[k], str):
-                errors.append(f"{label}: field {k!r} must be a string")
+        check_strings(item, TEXT_FIELDS, label, errors)
         ptype = item.get("type")
         if "type" in item and ptype not in TYPES:
             errors.append(f"{label}: unknown type {ptype!r}; expected one of D, F, C, T")
@@ -202,12 +195,7 @@ def _parse_constants(items, where, errors, optional=()) -> dict[str, Constant]:
             errors.append(f"{label}: duplicated")
             continue
         n_err = len(errors)
-        for k in item:
-            if k not in CONST_FIELDS:
-                errors.append(f"{label}: unknown field {k!r}; expected {', '.join(CONST_FIELDS)}")
-        for k in CONST_FIELDS:
-            if k not in item:
-                errors.append(f"{label}: missing field {k!r}")
+        check_fields(item, CONST_FIELDS, label, errors)
         if "type" in item and item["type"] not in CONSTANT_TYPES:
             errors.append(f"{label}: type {item['type']!r}; constants are D or F")
         unit = item.get("unit")
@@ -217,9 +205,7 @@ def _parse_constants(items, where, errors, optional=()) -> dict[str, Constant]:
         v = item.get("value")
         if "value" in item and (not _is_num(v) or not math.isfinite(v)):
             errors.append(f"{label}: value {v!r} is not a finite number")
-        for k in ("symbol", "description", "source"):
-            if k in item and not isinstance(item[k], str):
-                errors.append(f"{label}: field {k!r} must be a string")
+        check_strings(item, TEXT_FIELDS, label, errors)
         if len(errors) == n_err:
             out[nm] = Constant(nm, item["symbol"], item["description"], item["type"], float(v), unit, item["source"])
     for nm in CONSTANTS:
