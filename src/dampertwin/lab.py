@@ -60,11 +60,11 @@ from . import __version__
 from .design import Design, DesignError
 from .design import load as load_design
 from .io import write_frame
-from .lab_passive import DEFAULT_ARCHITECTURE, PASSIVE_VALVES, passive_runs
+from .lab_passive import DEFAULT_ARCHITECTURE, PASSIVE_VALVES
 from .lab_record import TRUTH_ATOL, TRUTH_RTOL, actuate, record
 from .lab_sample import (LAB3_VERSION, LAB_VERSION, TEMPERATURE_DEFAULTS, LabError, _sensor_specs, check_corners,
                          check_sample, is_truth_sample, load_sample, sample_design, truth_part)
-from .protocols import Run, build_runs, flow_bench, load_all
+from .protocols import Run, build_runs, flow_bench, load_all, passive_runs
 from .variants import TOP_MOUNTS, VALVE_DESIGNS, Variant, load_variants
 
 # The sample the DVC lab stage measures: the lab-3 sample, measured on the truth of other physics
@@ -149,7 +149,7 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
         if not runs:
             raise LabError(f"protocol {protocol} has no run at {v.current} A for case {case}")
     if arch != DEFAULT_ARCHITECTURE and protocol != "flowbench":
-        runs = passive_runs(runs)
+        runs = passive_runs(runs, at_zero=True)
         extra = {**extra, "architecture": arch}
     b = sample["benches"]
     tc = {**TEMPERATURE_DEFAULTS, **b.get("temperature", {})}
