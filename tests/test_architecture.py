@@ -232,6 +232,26 @@ def test_simulate_runs_only_what_the_architecture_has(designs, tmp_path):
     assert runs_for_design(designs["baseline"], runs, "curving") == runs
 
 
+def test_a_passive_damper_runs_each_input_once_whatever_the_protocol():
+    """protocols.passive_runs, which `dampertwin simulate` and the lab both use: runs that differ only by the
+    current are one run for a passive damper (the first current's); other inputs stay apart; the lab's records
+    of it are at 0 A, labelled I0."""
+    from dampertwin.protocols import build_runs, load_protocol, passive_runs
+
+    curving = build_runs(load_protocol(ROOT / "conf" / "test" / "curving.yaml"))
+    first = [r for r in curving if r.current == curving[0].current]
+    assert passive_runs(curving) == first and len(first) < len(curving)
+    recs = passive_runs(curving, at_zero=True)
+    assert [(r.name, r.current) for r in recs] == [(r.name.replace(f"_I{r.current:g}", "_I0"), 0.0) for r in first]
+    dyno = load_protocol(ROOT / "conf" / "test" / "dyno.yaml")
+    (alone,) = build_runs(dyno)
+    assert passive_runs([alone], at_zero=True) == [alone]  # the current-free dyno run: label passive, 0 A
+    active = build_runs({**dyno, "currents": [0.32, 1.6]})
+    assert passive_runs(active) == active[:1]
+    fast = build_runs({**dyno, "currents": [0.32], "amplitude": dyno["amplitude"] / 2})  # another input
+    assert passive_runs(active + fast) == [active[0], fast[0]]
+
+
 def test_mono_tube_gas_heating_moves_the_compression_chamber_with_the_gas_law(designs):
     """oil_thermal in a mono tube: at rest with the oil 20 K above the ambient (cooling), the compression
     chamber's pressure rate equals the gas law's total derivative, d/dt [P0 (V0/V_g)^gamma T/T0] =

@@ -95,7 +95,7 @@ def test_lab_measures_the_hidden_sample_not_the_nominal_design(tmp_path, monkeyp
     than to one of the nominal design. Negative control: a lab that
     simulates the nominal design (sample deviations dropped) fails it."""
     if simulate_nominal:
-        monkeypatch.setattr(labmod, "sample_design", lambda d, s: d)
+        monkeypatch.setattr("dampertwin.lab_record.sample_design", lambda d, s: d)  # where a run looks it up
     (p,) = run_lab(SAMPLE, tmp_path, seed=3, only=[("monosine", "baseline_1.6")], progress=False, conf=CONF, workers=1)
     df, _ = read_frame(p, "monosine")
     nominal = load(NOMINAL)

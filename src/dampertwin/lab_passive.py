@@ -5,8 +5,6 @@ and one record of any lab-3 sample's truth for any displacement excitation
 
 from __future__ import annotations
 
-import math
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,18 +13,10 @@ import pandas as pd
 from .excitation import Excitation
 
 DEFAULT_ARCHITECTURE = "triple_tube_semi_active"
-# the tests of a passive damper's sample (no active valve: its runs at the protocol's first current, run at 0 A)
+# the tests of a passive damper's sample (no active valve: each input once, at 0 A: protocols.passive_runs)
 PASSIVE_TESTS = ("flowbench", "compliance", "curving", "dyno")
 PASSIVE_VALVES = {"twin_tube": ("piston_rebound", "piston_intake", "base_compression", "base_intake"),
                   "mono_tube": ("piston_rebound", "piston_intake")}
-
-
-def passive_runs(runs: list) -> list:
-    """A passive damper's runs of a test: those at the protocol's first
-    current, run at 0 A (no coil) and named ``..._I0``."""
-    first = runs[0].current
-    return [replace(r, current=0.0, name=(r.name.rsplit("_I", 1)[0] + "_I0") if "_I" in r.name else r.name)
-            for r in runs if math.isclose(r.current, first)]
 
 
 def measure_excitation(sample: str | Path | dict, excitation: Excitation, *, name: str = "run",

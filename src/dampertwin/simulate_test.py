@@ -16,7 +16,7 @@ from . import __version__
 from .design import load as load_design
 from .errors import UserError
 from .io import write_frame
-from .protocols import build_runs, flow_bench, load_protocol
+from .protocols import build_runs, flow_bench, load_protocol, passive_runs
 from .simulation import simulate
 
 # the channel drawn per configuration, with its unit label
@@ -42,18 +42,14 @@ def select_runs(protocol: dict, test: str, case: str | None, current: float | No
 
 def runs_for_design(design, runs: list, test: str) -> list:
     """The runs a design's architecture can run: no flow-bench run of a valve it lacks; a passive damper (no
-    active valve) runs each input once, at the protocol's first current (the current is not read)."""
+    active valve) runs each input once, at the protocol's first current (protocols.passive_runs; the current
+    is not read)."""
     from .calibration.damper_fit import present_valves
 
     if design.pq_map is not None:
         return runs
     have = present_valves(design)
-    kept = [r for r in runs if r.configuration != "valve" or r.bench_valve in have]
-    first = {}
-    for r in kept:
-        key = r.name.replace(f"I{r.current:g}", "")  # the run's input without its current label
-        first.setdefault(key, r)
-    kept = [r for r in kept if first[r.name.replace(f"I{r.current:g}", "")] is r]
+    kept = passive_runs([r for r in runs if r.configuration != "valve" or r.bench_valve in have])
     if not kept:
         raise UserError(f"test {test!r}: no run a {design.architecture} damper can run (no active valve"
                         + (", no such valve" if runs and runs[0].configuration == "valve" else "") + ")")

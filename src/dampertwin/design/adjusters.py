@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+from .entries import check_fields
 from .schema import PARAMETERS, RANGES, VALVES
 
 ADJUSTER_NAMES = ("rebound", "compression")
@@ -72,12 +73,7 @@ def _parse_one(name: str, item: Any, label: str, errors: list[str]) -> Adjuster 
         errors.append(f"{label}: expected a mapping with {', '.join(ADJUSTER_FIELDS)}, got {type(item).__name__}")
         return None
     n0 = len(errors)
-    for k in item:
-        if k not in ADJUSTER_FIELDS:
-            errors.append(f"{label}: unknown field {k!r}; expected {', '.join(ADJUSTER_FIELDS)}")
-    for k in ADJUSTER_FIELDS:
-        if k not in item:
-            errors.append(f"{label}: missing field {k!r}")
+    check_fields(item, ADJUSTER_FIELDS, label, errors)
     valve, par = item.get("valve"), item.get("parameter")
     if "valve" in item and valve not in VALVES:
         errors.append(f"{label}.valve: {valve!r}; expected one of {', '.join(VALVES)}")

@@ -18,7 +18,7 @@ def cache_sources() -> list[Path]:
     """Every source file compiled into the right-hand sides and the solver
     (tests/test_model_core.py checks this covers all reachable compiled code)."""
     pkg = Path(__file__).resolve().parent
-    return sorted(pkg.glob("*.py")) + [pkg.parent / "solver.py"]
+    return sorted(pkg.glob("*.py")) + [pkg.parent / "solver.py"] + sorted(pkg.parent.glob("solver_*.py"))
 
 
 def _cache_dir() -> str:

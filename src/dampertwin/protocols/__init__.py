@@ -9,7 +9,7 @@ problem with the file and key); ``build_runs(protocol, seed)`` makes the runs.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -281,6 +281,32 @@ def build_runs(protocol: dict, seed: int = 0) -> list[Run]:
     return _BUILDERS[protocol["protocol"]](protocol, int(seed))
 
 
+def passive_runs(runs: list[Run], *, at_zero: bool = False) -> list[Run]:
+    """The runs of a test that a passive damper (no active valve: no current to read) runs. Runs that differ
+    only by the active-valve current (same test, configuration, valve, rate, excitation and metadata) are one
+    run for it: the first of them, at the protocol's first current; order kept. A protocol's single current-free
+    run (the dyno test without ``currents:``, label ``passive``, 0 A) is kept as it is. ``at_zero``: the kept
+    runs at 0 A, a current label ``_I<current>`` written ``_I0`` (the lab's records of a passive sample)."""
+    seen: set = set()
+    kept = []
+    for r in runs:
+        key = _input_key(r)
+        if key not in seen:
+            seen.add(key)
+            kept.append(r)
+    if at_zero:
+        kept = [replace(r, current=0.0, name=(r.name.rsplit("_I", 1)[0] + "_I0") if "_I" in r.name else r.name)
+                for r in kept]
+    return kept
+
+
+def _input_key(r: Run) -> tuple:
+    """What a run feeds the damper, its current left out."""
+    ex = r.excitation
+    return (r.test, r.configuration, r.bench_valve, float(r.rate), ex.kind, float(ex.t0), float(ex.dt),
+            ex.value.tobytes(), ex.rate.tobytes(), repr(sorted(r.meta.items())))
+
+
 def recording_rates(protocol: dict) -> float | dict[str, float]:
     """The sampling rate [Hz] a record of the protocol is made at: one
     value, or per run label where runs differ (top mount: static 200 Hz,
@@ -301,4 +327,4 @@ def load_all(conf_dir: str | Path) -> dict[str, dict]:
 
 
 __all__ = ["Run", "ProtocolError", "PROTOCOLS", "load_protocol", "validate", "build_runs", "load_all",
-           "recording_rates"]
+           "recording_rates", "passive_runs"]

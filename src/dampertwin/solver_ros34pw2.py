@@ -1,0 +1,228 @@
+"""The ROS34PW2 step loop (dampertwin.solver): Rang & Angermann 2005, an
+order-3(2) Rosenbrock-W method whose Jacobian is kept over steps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .jit import lazy_njit
+from .solver_base import (CT_ERROLD, CT_FIRST, CT_H, CT_HOLD, CT_JAGE, CT_REJECT, FAC_MAX, FAC_MIN, H_KEEP, H_MIN_REL,
+                          JAC_MAX_AGE, MAX_STEPS, NON_FINITE, OK, SAFE, STEP_UNDERFLOW, ST_ACCEPTED, ST_FEVALS, ST_JACS,
+                          ST_REJECTED, ST_STEPS, _JIT, _STEP_SIG, _f)
+from .solver_linalg import _fd_jacobian, _it_factor, _it_solve, _jac_mul_add
+
+
+# ROS34PW2 (Rang & Angermann, BIT 45 (2005) 761-787): a 4-stage, order-3(2),
+# L-stable, stiffly accurate Rosenbrock-W method. Its order holds for any
+# approximation of the Jacobian, so the Jacobian is reused across steps.
+_WG = 0.435866521508459
+_WA21 = 0.87173304301691801
+_WA31, _WA32 = 0.84457060015369423, -0.11299064236484185
+_WG21 = -0.87173304301691801
+_WG31, _WG32 = -0.90338057013044082, 0.054180672388095326
+_WG41, _WG42, _WG43 = 0.24212380706095346, -1.2232505839045147, 0.54526025533510214
+_WB1, _WB2, _WB3, _WB4 = 0.24212380706095346, -1.2232505839045147, 1.5452602553351020, 0.435866521508459
+_WE1 = _WB1 - 0.37810903145819369  # b - b_hat (embedded order 2)
+_WE2 = _WB2 + 0.096042292212423178
+_WE3 = _WB3 - 0.5
+_WE4 = _WB4 - 0.2179332607542295
+_WC2, _WC3 = _WA21, _WA31 + _WA32
+_WGS2, _WGS3 = _WG21 + _WG, _WG31 + _WG32 + _WG  # gamma_i = sum_j gamma_ij (time-derivative terms)
+
+
+@lazy_njit(_STEP_SIG, **_JIT)
+def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+             channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, n_rhs_out, fixed_h, jac, ft):
+    """Same contract as :func:`rodas4`, with the ROS34PW2 Rosenbrock-W
+    method: the Jacobian ``jac`` (and df/dt ``ft``) persist across steps and
+    calls and are rebuilt only after a rejected step or JAC_MAX_AGE accepted
+    steps. Stage equations (Hairer & Wanner IV.7.4, W form):
+    (I - h g J) k_i = h f(t + c_i h, z + sum a_ij k_j) + h J sum g_ij k_j + g_i h^2 f_t.
+    Dense output: cubic Hermite on (z, f) at both ends of the step (order 3)."""
+    n = z.shape[0]
+    isc = 1.0 / sc
+    y = np.empty(n)
+    dy = np.empty(n)
+    out = np.empty(n_rhs_out)
+    f0 = np.empty(n)
+    f1 = np.empty(n)
+    dl = np.empty(n)
+    zs = np.empty(n)
+    a = np.empty((n, n))
+    piv = np.empty(n, np.int64)
+    mode = 0
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    yt = np.empty(n)
+    znew = np.empty(n)
+    zd = np.empty(n)
+    fn = np.empty(n)
+    n_out = t_out.shape[0]
+    h = fixed_h if fixed_h > 0.0 else ctrl[CT_H]
+    lu_h = -1.0  # step size of the factorisation held in a (-1: none); reset when J changes
+
+    _f(rhs, t, z, sc, isc, p, ex, aux, f0, y, dy, out)
+    stats[ST_FEVALS] += 1
+    while t_end - t > H_MIN_REL * max(abs(t), 1.0):
+        if stats[ST_STEPS] >= max_steps:
+            ctrl[CT_H] = h
+            return float(MAX_STEPS), t, float(i_out)
+        fresh = False
+        if ctrl[CT_JAGE] >= JAC_MAX_AGE:
+            _fd_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl,
+                         y, dy, out)
+            stats[ST_FEVALS] += n_colours + 1
+            stats[ST_JACS] += 1
+            ctrl[CT_JAGE] = 0.0
+            fresh = True
+            lu_h = -1.0
+        while True:  # attempt steps until one is accepted
+            stats[ST_STEPS] += 1
+            if stats[ST_STEPS] > max_steps:
+                ctrl[CT_H] = h
+                return float(MAX_STEPS), t, float(i_out)
+            if fixed_h > 0.0:
+                h = fixed_h
+            h = min(h, h_max)
+            if t + 1.01 * h >= t_end:
+                h = t_end - t
+            if not h > H_MIN_REL * max(abs(t), 1.0):
+                ctrl[CT_H] = h
+                return float(STEP_UNDERFLOW), t, float(i_out)
+            if h != lu_h:  # same J and h: the factorisation of I/(g h) - J is unchanged
+                mode = _it_factor(jac, 1.0 / (_WG * h), a, piv, lu_plan)
+                lu_ok = mode > 0
+                lu_h = h if lu_ok else -1.0
+            else:
+                lu_ok = True
+            ok = lu_ok
+            finite = ok
+            err = 0.0
+            if ok:
+                # stage 1
+                for i in range(n):
+                    k1[i] = (f0[i] + _WG * h * ft[i]) / _WG  # divided by g: a holds (I/(g h) - J)
+                _it_solve(a, piv, lu_plan, mode, k1)
+                # stage 2
+                for i in range(n):
+                    yt[i] = z[i] + _WA21 * k1[i]
+                _f(rhs, t + _WC2 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+                for i in range(n):
+                    k2[i] = f1[i] + _WGS2 * h * ft[i]
+                _jac_mul_add(jac, col_ptr, row_idx, k1, _WG21, k2)
+                for i in range(n):
+                    k2[i] /= _WG
+                _it_solve(a, piv, lu_plan, mode, k2)
+                # stage 3
+                for i in range(n):
+                    yt[i] = z[i] + _WA31 * k1[i] + _WA32 * k2[i]
+                _f(rhs, t + _WC3 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+                for i in range(n):
+                    k3[i] = f1[i] + _WGS3 * h * ft[i]
+                _jac_mul_add(jac, col_ptr, row_idx, k1, _WG31, k3)
+                _jac_mul_add(jac, col_ptr, row_idx, k2, _WG32, k3)
+                for i in range(n):
+                    k3[i] /= _WG
+                _it_solve(a, piv, lu_plan, mode, k3)
+                # stage 4 (z + k3: the stiffly accurate end point)
+                for i in range(n):
+                    yt[i] = z[i] + k3[i]
+                _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+                for i in range(n):
+                    k4[i] = f1[i]
+                _jac_mul_add(jac, col_ptr, row_idx, k1, _WG41, k4)
+                _jac_mul_add(jac, col_ptr, row_idx, k2, _WG42, k4)
+                _jac_mul_add(jac, col_ptr, row_idx, k3, _WG43, k4)
+                for i in range(n):
+                    k4[i] /= _WG
+                _it_solve(a, piv, lu_plan, mode, k4)
+                stats[ST_FEVALS] += 3
+                for i in range(n):
+                    e = _WE1 * k1[i] + _WE2 * k2[i] + _WE3 * k3[i] + _WE4 * k4[i]
+                    znew[i] = z[i] + _WB1 * k1[i] + _WB2 * k2[i] + _WB3 * k3[i] + _WB4 * k4[i]
+                    sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
+                    err += (e / sk) ** 2
+                err = math.sqrt(err / n)
+                finite = math.isfinite(err)
+            if fixed_h > 0.0:
+                if not finite:
+                    ctrl[CT_H] = h
+                    return float(NON_FINITE), t, float(i_out)
+                hnew = h
+                break
+            if not finite or err > 1.0:
+                stats[ST_REJECTED] += 1
+                ctrl[CT_REJECT] = 1.0
+                if finite:
+                    h = h / max(FAC_MIN, min(FAC_MAX, err ** (1.0 / 3.0) / SAFE))
+                else:
+                    h *= 0.25
+                if not fresh:  # a stale Jacobian may be the culprit: rebuild it once
+                    _fd_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1,
+                                 zs, dl, y, dy, out)
+                    stats[ST_FEVALS] += n_colours + 1
+                    stats[ST_JACS] += 1
+                    ctrl[CT_JAGE] = 0.0
+                    fresh = True
+                    lu_h = -1.0
+                continue
+            fac = max(FAC_MIN, min(FAC_MAX, err ** (1.0 / 3.0) / SAFE))
+            hnew = h / fac
+            if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller
+                facpred = (ctrl[CT_HOLD] / h) * (err * err / ctrl[CT_ERROLD]) ** (1.0 / 3.0) / SAFE
+                facpred = max(FAC_MIN, min(FAC_MAX, facpred))
+                fac = max(fac, facpred)
+                hnew = h / fac
+            ctrl[CT_FIRST] = 0.0
+            ctrl[CT_HOLD] = h
+            ctrl[CT_ERROLD] = max(0.01, err)
+            if ctrl[CT_REJECT] > 0.0:
+                hnew = min(hnew, h)
+            if h <= hnew <= H_KEEP * h:  # keep h (and so the factorisation) for a small increase
+                hnew = h
+            ctrl[CT_REJECT] = 0.0
+            break
+        t_new = t + h
+        for i in range(n):
+            if not math.isfinite(znew[i]):
+                ctrl[CT_H] = h
+                return float(NON_FINITE), t, float(i_out)
+        _f(rhs, t_new, znew, sc, isc, p, ex, aux, fn, y, dy, out)
+        stats[ST_FEVALS] += 1
+        # dense output: cubic Hermite through (z, f0) and (znew, fn)
+        while i_out < n_out and t_out[i_out] <= t_new * (1.0 + 1e-15):
+            s = (t_out[i_out] - t) / h
+            s2 = s * s
+            s3 = s2 * s
+            h00 = 2 * s3 - 3 * s2 + 1
+            h10 = s3 - 2 * s2 + s
+            h01 = -2 * s3 + 3 * s2
+            h11 = s3 - s2
+            for i in range(n):
+                zd[i] = h00 * z[i] + h10 * h * f0[i] + h01 * znew[i] + h11 * h * fn[i]
+            _f(rhs, t_out[i_out], zd, sc, isc, p, ex, aux, f1, y, dy, out)
+            for c in range(channels.shape[0]):
+                out_buf[i_out, c] = out[channels[c]]
+            i_out += 1
+        for i in range(n):
+            z[i] = znew[i]
+            f0[i] = fn[i]
+        t = t_new
+        stats[ST_ACCEPTED] += 1
+        ctrl[CT_JAGE] += 1.0
+        fresh = False
+        h = hnew
+        if t >= t_pause:
+            ctrl[CT_H] = h
+            return float(OK), t, float(i_out)
+    while i_out < n_out and t_out[i_out] <= t_end * (1.0 + 1e-15):
+        _f(rhs, t_out[i_out], z, sc, isc, p, ex, aux, f1, y, dy, out)
+        for c in range(channels.shape[0]):
+            out_buf[i_out, c] = out[channels[c]]
+        i_out += 1
+    ctrl[CT_H] = h
+    return float(OK), t_end, float(i_out)
