@@ -2,7 +2,8 @@
 a control says `none`, a clearly isolable hidden effect (piston leakage at a
 large gap) is named, an artefact outside the library (load-cell crosstalk)
 is `unexplained`, the augmented design loads and round-trips, bad input
-exits 2 naming the file. CI budget: the tests use compliance + two
+exits 2 naming the file (the hidden oil heating and pressure-loaded seal
+scenarios are `slow`). CI budget: the tests use compliance + two
 mono-sine cases (no random record) and one lab generation per sample. The
 methods' tests (features, gate, parameter choice, pairs):
 tests/test_discrepancy_method.py."""
@@ -150,6 +151,7 @@ def test_hidden_leakage_is_named(leak, tmp_path):
     assert d.hash() == loads(d.dumps(), base_dir=str(ROOT / "conf" / "design")).hash()
 
 
+@pytest.mark.slow  # two warm-up labs and two workflow runs: 128 s on the 2-core machine at load 4
 def test_oil_heating_is_named_on_warm_up_records(tmp_path):
     """oil_thermal moves the force of seconds-long records by < 1 N, so only the warm-up test's
     thermocouple shows it. Hidden at its typical magnitude, the temperature rise names the effect
@@ -171,6 +173,7 @@ def test_oil_heating_is_named_on_warm_up_records(tmp_path):
     assert doc["verdict"] == "none", doc
 
 
+@pytest.mark.slow  # two friction labs and two workflow runs: 54 s at load 4
 def test_pressure_loaded_seal_is_named_on_friction_records(tmp_path):
     """On the standard tests a seal that rubs harder with the chamber pressure is a ~2 % force gain plus a
     Coulomb step (the calibration absorbs it). The friction test strokes the damper slowly at two gas

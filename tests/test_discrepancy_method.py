@@ -290,6 +290,7 @@ CI_RECORDS = [("flowbench", v) for v in ("piston_rebound", "piston_intake", "bas
     ("random", "baseline_1.6"), ("curving", "baseline")]
 
 
+@pytest.mark.slow  # a five-test lab and a full ci workflow: 68 s at load 4
 def test_a_null_effect_is_not_credited_with_the_calibrations_further_refit(tmp_path):
     """Regression (bench/discrepancy.py --seed 71, control 1): a part with small valve, top-mount and
     rod-friction deviations and no hidden effect; the calibration refit leaves one curving run at 1.7x
