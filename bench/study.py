@@ -14,7 +14,7 @@ profile: wall and CPU seconds, evaluations (simulations), final objective;
 then the ratios full / thesis.
 
     PYTHONPATH=src python bench/study.py --measured data/measured [--parts valve,compliance,topmount,approach2]
-        [--stall 8:1e-3]
+        [--stall 8:1e-3] [--seed-offset N]
 
 CPU seconds are the process's (all threads). The machine is shared while
 sessions work: compare ratios and evaluations, which the load does not move.
@@ -51,9 +51,12 @@ def _timed(fn):
     return out, time.perf_counter() - w, time.process_time() - c
 
 
+SEED_OFFSET = 0  # --seed-offset: other seeds than the stages' (the GAs' run-to-run scatter)
+
+
 def _seed(name: str) -> int:
-    """The stages' seed for a stage name (stages/_common.py seed_for)."""
-    return (int(yaml_load_file(CONF / "config.yaml").get("seed", 0)) + zlib.crc32(name.encode())) % 2**31
+    """The stages' seed for a stage name (stages/_common.py seed_for), plus ``SEED_OFFSET``."""
+    return (int(yaml_load_file(CONF / "config.yaml").get("seed", 0)) + zlib.crc32(name.encode()) + SEED_OFFSET) % 2**31
 
 
 def _valve(prof: dict, d, meas: Path):
@@ -113,7 +116,11 @@ def main() -> None:
     ap.add_argument("--stall", default=None, metavar="K:TOL",
                     help="also run profile full with every GA stopping after K generations that gained <= TOL "
                          "(relative): the convergence-stop lever")
+    ap.add_argument("--seed-offset", type=int, default=0,
+                    help="add this to every stage seed (0: the study's seeds); several offsets give the scatter")
     a = ap.parse_args()
+    global SEED_OFFSET
+    SEED_OFFSET = a.seed_offset
     parts = [p for p in a.parts.split(",") if p]
     bad = [p for p in parts if p not in PARTS]
     if bad:
@@ -121,7 +128,7 @@ def main() -> None:
     meas = Path(a.measured)
     d = load(CONF / "design" / "baseline.yaml")
     fns = {"valve": _valve, "compliance": _compliance, "topmount": _topmount, "approach2": _approach2}
-    out: dict = {"bench": "study", "measured": str(meas)}
+    out: dict = {"bench": "study", "measured": str(meas), "seed_offset": SEED_OFFSET}
     variants = {name: yaml_load_file(CONF / "profile" / f"{name}.yaml") for name in ("full", "thesis")}
     if a.stall:
         k, tol = a.stall.split(":")
