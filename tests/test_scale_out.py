@@ -1,6 +1,7 @@
 """Scale-out on a Dask cluster (issue 39, item 6): the heavy commands take a
 scheduler address and give the same bytes as the local run -- approach 2's
 sensitivity runs, the discrepancy workflow's records, a sweep's variants
+and the hidden-effect bench matrix's cases
 (the GA and concurrent-GA evaluators: tests/test_ga.py,
 tests/test_concurrent_ga.py) -- each against a 2-worker
 ``distributed.LocalCluster``; the SLURM cluster description
@@ -245,3 +246,38 @@ def test_cluster_command_checks_the_description(tmp_path, capsys):
     if importlib.util.find_spec("dask_jobqueue"):  # with it, the job script; without, test_slurm_without_...
         assert main(["cluster", "--config", str(SLURM), "--check"]) == 0
         assert "#SBATCH --mem=4G" in capsys.readouterr().out
+
+
+# ------------------------------------------------------------ the bench matrix
+_TIMING = ("lab_s", "lab_reused", "start_s", "case_s", "wall_s_per_case")
+
+
+def _matrix(work: Path, *extra: str) -> tuple[dict, list]:
+    """bench/discrepancy.py on one control case (nominal start, three records), as a user runs it:
+    (the summary line without timings, the case rows without timings)."""
+    cmd = [sys.executable, str(ROOT / "bench" / "discrepancy.py"), "--controls", "1", "--per-effect", "0",
+           "--pairs", "0", "--artefacts", "0", "--start", "nominal", "--seed", "3", "--work", str(work),
+           "--tests", "compliance:baseline,monosine:baseline_1.6,monosine:baseline_0.32", *extra]
+    env = dict(os.environ, MPLBACKEND="Agg")
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    drop = lambda d: {k: v for k, v in d.items() if k not in _TIMING}  # noqa: E731
+    rows = [drop(json.loads(x)) for x in r.stderr.splitlines() if x.startswith("{")]
+    return drop(json.loads(r.stdout.strip().splitlines()[-1])), rows
+
+
+@pytest.mark.slow  # one control case twice (lab records once, the workflow twice): ~2-3 min on 2 cores
+def test_bench_matrix_on_a_cluster_gives_the_same_rows(tmp_path):
+    """``bench/discrepancy.py --scheduler``: the cases run as tasks there, the same rows and summary
+    as the local run (the lab records of the first run are reused by the second: same stamp)."""
+    work = tmp_path / "work"
+    with cluster(processes=True) as lc:  # the script's own case function, shipped to process workers
+        remote = _matrix(work, "--scheduler", lc.scheduler_address)
+        assert sum(p.all_durations.get("compute", 0) for p in lc.scheduler.task_prefixes.values()) > 0  # ran there
+    (work / "out0").rename(tmp_path / "remote_out")
+    local = _matrix(work)
+    assert len(local[1]) == 1 and local[1][0]["cell"] == "control" and local[1][0]["verdict"]
+    assert remote == local
+    a, b = _files(tmp_path / "remote_out"), _files(work / "out0")  # the case's workflow output, every file
+    assert {"verdict.json", "design.yaml", "report.md"} <= set(a)
+    assert a.keys() == b.keys() and all(a[k] == b[k] for k in a), [k for k in a if a[k] != b.get(k)]
