@@ -134,3 +134,31 @@ def test_trend_table_reasons_are_derived_not_assumed():
     m = trend_metrics(raw)
     assert m["compared"] == len(tr2) and m["agree"] == int(tr2.agrees.sum()) == 3
     assert {(d["case"], d["half-cycle"]) for d in m["disagreeing"]} == set(tr2.index[~tr2.agrees])
+
+
+def test_trend_against_the_thesis_simulated_column():
+    """Issue 40 item 4: directions of |peak| change vs the thesis' SIMULATED table-6.5 column
+    (baseline 8.1 / -16.9 g): counted where the thesis' change has a direction, a change here
+    below 0.1 g or the other way round disagrees, with its reason."""
+    from dampertwin.sweep import simulated_trend_table, trend_metrics
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "stages"))
+    from sweep import thesis_simulated
+
+    ts = thesis_simulated(Path(__file__).resolve().parents[1] / "conf" / "thesis" / "published.yaml")
+    assert ts["baseline_1.6"] == (8.1, -16.9) and ts["lower_base_intake"] == (13.7, -16.1)
+    tab = pd.DataFrame({"case": ["baseline_1.6", "lower_base_intake", "increased_precharge", "different_active_valve"],
+                        "factor": ["", "", "", ""], "status": ["ok"] * 4,
+                        # thesis' model: rebound up 5.6 / up 1.9 / up 0.2, |compression| down 0.8 / 0.3 / 0.6
+                        "rebound peak [g]": [5.0, 6.0, 4.0, 5.05],
+                        "compression peak [g]": [-10.0, -9.0, -10.5, -9.5]})
+    tr = simulated_trend_table(tab, ts).set_index(["case", "half-cycle"])
+    assert len(tr) == 6
+    assert tr.loc[("lower_base_intake", "rebound"), "agrees"] and tr.loc[("lower_base_intake", "compression"), "agrees"]
+    assert not tr.loc[("increased_precharge", "rebound"), "agrees"]  # down here, up there
+    assert tr.loc[("increased_precharge", "rebound"), "reason"].startswith("opposite direction")
+    assert not tr.loc[("increased_precharge", "compression"), "agrees"]  # |peak| up 0.5 here, down 0.3 there
+    assert "below the 0.1 g resolution" in tr.loc[("different_active_valve", "rebound"), "reason"]
+    assert tr.loc[("different_active_valve", "compression"), "agrees"]
+    m = trend_metrics(tr.reset_index())
+    assert (m["agree"], m["compared"]) == (3, 6)

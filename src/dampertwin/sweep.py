@@ -334,6 +334,36 @@ def trend_table(tab: pd.DataFrame, lab: dict[str, tuple[float, float]] | None = 
     return pd.DataFrame(rows)
 
 
+def simulated_trend_table(tab: pd.DataFrame, thesis_simulated: dict[str, tuple[float, float]],
+                          resolution: float = TREND_RESOLUTION) -> pd.DataFrame:
+    """Per table-6.5 case and half-cycle: the change of |peak| vs the baseline
+    [g] simulated here and in the thesis' SIMULATED column (its chapter-6
+    model, ``thesis_simulated``: case -> (rebound, compression) [g]; issue 40
+    item 4), and whether the directions agree. A thesis change below
+    ``resolution`` has no direction (row left out); a change here below it
+    disagrees, with that reason."""
+    ok = tab[(tab.get("factor", "") == "") & (tab.status == "ok")].set_index("case")
+    if BASELINE_CASE not in ok.index or BASELINE_CASE not in thesis_simulated:
+        return pd.DataFrame()
+    rows = []
+    for case in ok.index:
+        if case == BASELINE_CASE or case not in thesis_simulated:
+            continue
+        for j, half in enumerate(("rebound", "compression")):
+            col = f"{half} peak [g]"
+            d_sim = abs(ok.loc[case, col]) - abs(ok.loc[BASELINE_CASE, col])
+            d_ts = abs(thesis_simulated[case][j]) - abs(thesis_simulated[BASELINE_CASE][j])
+            if abs(d_ts) < resolution:
+                continue
+            agree = bool(np.sign(d_sim) == np.sign(d_ts)) and abs(d_sim) >= resolution
+            reason = ("" if agree else f"simulated change {d_sim:+.2f} g below the {resolution:g} g resolution: "
+                      "no direction" if abs(d_sim) < resolution else
+                      f"opposite direction: {d_sim:+.2f} g here, {d_ts:+.2f} g in the thesis' model")
+            rows.append({"case": case, "half-cycle": half, "change simulated [g]": float(d_sim),
+                         "change thesis simulated [g]": float(d_ts), "agrees": agree, "reason": reason})
+    return pd.DataFrame(rows)
+
+
 def trend_metrics(trend: pd.DataFrame) -> dict:
     """metrics.json entry: agreeing / compared directions, and the cases that
     disagree with their reason."""
