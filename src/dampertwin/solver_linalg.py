@@ -11,10 +11,10 @@ import numpy as np
 from numba import njit, types
 
 from .jit import lazy_njit
-from .solver_base import _A1, _A2, _I1, _JIT, FD_EPS, RHS, _f
+from .solver_base import _A1, _A2, _I1, _JIT, _JIT_NO_NRT, FD_EPS, RHS, _f
 
 
-@njit(**_JIT)
+@njit(**_JIT_NO_NRT)
 def _lu_factor(a, piv):
     n = a.shape[0]
     for k in range(n):
@@ -42,7 +42,7 @@ def _lu_factor(a, piv):
     return True
 
 
-@njit(**_JIT)
+@njit(**_JIT_NO_NRT)
 def _lu_solve(a, piv, b):
     n = a.shape[0]
     for k in range(n):
@@ -167,7 +167,7 @@ def _it_solve(a, piv, plan, mode, b):
         b[i] = s / a[i, i]
 
 
-@njit(**_JIT)
+@njit(**_JIT_NO_NRT)
 def _fd_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y, dy,
                  out):
     """Jacobian d(dz)/dz by coloured forward differences (Curtis, Powell &
@@ -213,7 +213,7 @@ def fd_jacobian(rhs, t, z, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, 
                  out)
 
 
-@njit(**_JIT)
+@njit(**_JIT_NO_NRT)
 def _jac_mul_add(jac, col_ptr, row_idx, v, c, acc):
     """acc += c * J v over the sparsity pattern (CSC)."""
     for j in range(v.shape[0]):

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
+from numba import njit
 
 from .jit import lazy_njit
 from .solver_base import (CT_ERROLD, CT_FIRST, CT_H, CT_HOLD, CT_REJECT, FAC_MAX, FAC_MIN, H_MIN_REL, MAX_STEPS,
                           NON_FINITE, OK, SAFE, STEP_UNDERFLOW, ST_ACCEPTED, ST_FEVALS, ST_JACS, ST_REJECTED, ST_STEPS,
-                          _JIT, _STEP_SIG, _f)
+                          _JIT, _JIT_NO_NRT, _STEP_SIG, _f, work_arrays)
 from .solver_linalg import _fd_jacobian, _it_factor, _it_solve
 
 # Rodas4 coefficients (Hairer & Wanner, RODAS, METH = 1)
@@ -33,6 +33,8 @@ _E21, _E22, _E23, _E24, _E25 = (0.1012623508344586e02, -0.7487995877610167e01, -
 _E31, _E32, _E33, _E34, _E35 = (-0.6762803392801253, 0.6087714651680015e01, 0.1643084320892478e02,
                                 0.2476722511418386e02, -0.6594389125716872e01)
 
+_N_WORK = 15  # work rows of the step loop besides 1/sc
+
 
 @lazy_njit(_STEP_SIG, **_JIT)
 def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
@@ -43,27 +45,24 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
     channels at t_out[i_out:] <= t into out_buf. ``fixed_h`` > 0 takes steps
     of exactly that size without error control (for convergence tests).
     Returns (status, t, i_out) as floats."""
+    w, a, piv, out = work_arrays(z, sc, _N_WORK, n_rhs_out)
+    return _rodas4_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+                        channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, fixed_h, jac,
+                        ft, w, a, piv, out)
+
+
+@njit(**_JIT_NO_NRT)
+def _rodas4_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+                 channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, fixed_h, jac, ft,
+                 w, a, piv, out):
+    """The step loop of :func:`rodas4` on the work arrays of
+    :func:`work_arrays` (it allocates nothing, so it runs without
+    reference counting)."""
     n = z.shape[0]
-    isc = 1.0 / sc
-    y = np.empty(n)
-    dy = np.empty(n)
-    out = np.empty(n_rhs_out)
-    f0 = np.empty(n)
-    f1 = np.empty(n)
-    dl = np.empty(n)
-    zs = np.empty(n)
-    a = np.empty((n, n))
-    piv = np.empty(n, np.int64)
+    isc, y, dy, f0, f1, dl, zs, k1, k2, k3, k4, k5, err_v, yt, znew, zd = (w[0], w[1], w[2], w[3], w[4], w[5], w[6],
+                                                                          w[7], w[8], w[9], w[10], w[11], w[12],
+                                                                          w[13], w[14], w[15])
     mode = 0
-    k1 = np.empty(n)
-    k2 = np.empty(n)
-    k3 = np.empty(n)
-    k4 = np.empty(n)
-    k5 = np.empty(n)
-    err_v = np.empty(n)
-    yt = np.empty(n)
-    znew = np.empty(n)
-    zd = np.empty(n)
     n_out = t_out.shape[0]
     h = fixed_h if fixed_h > 0.0 else ctrl[CT_H]
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
+from numba import njit
 
 from .jit import lazy_njit
 from .solver_base import (CT_ERROLD, CT_FIRST, CT_H, CT_HOLD, CT_JAGE, CT_REJECT, FAC_MAX, FAC_MIN, H_KEEP, H_MIN_REL,
                           JAC_MAX_AGE, MAX_STEPS, NON_FINITE, OK, SAFE, STEP_UNDERFLOW, ST_ACCEPTED, ST_FEVALS, ST_JACS,
-                          ST_REJECTED, ST_STEPS, _JIT, _STEP_SIG, _f)
+                          ST_REJECTED, ST_STEPS, _JIT, _JIT_NO_NRT, _STEP_SIG, _f, work_arrays)
 from .solver_linalg import _fd_jacobian, _it_factor, _it_solve, _jac_mul_add
 
 
@@ -30,6 +30,7 @@ _WE3 = _WB3 - 0.5
 _WE4 = _WB4 - 0.2179332607542295
 _WC2, _WC3 = _WA21, _WA31 + _WA32
 _WGS2, _WGS3 = _WG21 + _WG, _WG31 + _WG32 + _WG  # gamma_i = sum_j gamma_ij (time-derivative terms)
+_N_WORK = 14  # work rows of the step loop besides 1/sc
 
 
 @lazy_njit(_STEP_SIG, **_JIT)
@@ -41,26 +42,23 @@ def ros34pw2(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out
     steps. Stage equations (Hairer & Wanner IV.7.4, W form):
     (I - h g J) k_i = h f(t + c_i h, z + sum a_ij k_j) + h J sum g_ij k_j + g_i h^2 f_t.
     Dense output: cubic Hermite on (z, f) at both ends of the step (order 3)."""
+    w, a, piv, out = work_arrays(z, sc, _N_WORK, n_rhs_out)
+    return _ros34pw2_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+                          channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, fixed_h, jac,
+                          ft, w, a, piv, out)
+
+
+@njit(**_JIT_NO_NRT)
+def _ros34pw2_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+                   channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, fixed_h, jac, ft,
+                   w, a, piv, out):
+    """The step loop of :func:`ros34pw2` on the work arrays of
+    :func:`work_arrays` (it allocates nothing, so it runs without
+    reference counting)."""
     n = z.shape[0]
-    isc = 1.0 / sc
-    y = np.empty(n)
-    dy = np.empty(n)
-    out = np.empty(n_rhs_out)
-    f0 = np.empty(n)
-    f1 = np.empty(n)
-    dl = np.empty(n)
-    zs = np.empty(n)
-    a = np.empty((n, n))
-    piv = np.empty(n, np.int64)
+    isc, y, dy, f0, f1, dl, zs, k1, k2, k3, k4, yt, znew, zd, fn = (w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7],
+                                                                    w[8], w[9], w[10], w[11], w[12], w[13], w[14])
     mode = 0
-    k1 = np.empty(n)
-    k2 = np.empty(n)
-    k3 = np.empty(n)
-    k4 = np.empty(n)
-    yt = np.empty(n)
-    znew = np.empty(n)
-    zd = np.empty(n)
-    fn = np.empty(n)
     n_out = t_out.shape[0]
     h = fixed_h if fixed_h > 0.0 else ctrl[CT_H]
     lu_h = -1.0  # step size of the factorisation held in a (-1: none); reset when J changes
