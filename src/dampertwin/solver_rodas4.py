@@ -94,45 +94,9 @@ def _rodas4_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t
             finite = ok
             err = 0.0
             if ok:
-                for i in range(n):
-                    k1[i] = f0[i] + h * _D1 * ft[i]
-                _it_solve(a, piv, lu_plan, mode, k1)
-                for i in range(n):
-                    yt[i] = z[i] + _A21 * k1[i]
-                _f(rhs, t + _C2 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    k2[i] = f1[i] + h * _D2 * ft[i] + _C21 * k1[i] / h
-                _it_solve(a, piv, lu_plan, mode, k2)
-                for i in range(n):
-                    yt[i] = z[i] + _A31 * k1[i] + _A32 * k2[i]
-                _f(rhs, t + _C3 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    k3[i] = f1[i] + h * _D3 * ft[i] + (_C31 * k1[i] + _C32 * k2[i]) / h
-                _it_solve(a, piv, lu_plan, mode, k3)
-                for i in range(n):
-                    yt[i] = z[i] + _A41 * k1[i] + _A42 * k2[i] + _A43 * k3[i]
-                _f(rhs, t + _C4 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    k4[i] = f1[i] + h * _D4 * ft[i] + (_C41 * k1[i] + _C42 * k2[i] + _C43 * k3[i]) / h
-                _it_solve(a, piv, lu_plan, mode, k4)
-                for i in range(n):
-                    yt[i] = z[i] + _A51 * k1[i] + _A52 * k2[i] + _A53 * k3[i] + _A54 * k4[i]
-                _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    k5[i] = f1[i] + (_C51 * k1[i] + _C52 * k2[i] + _C53 * k3[i] + _C54 * k4[i]) / h
-                _it_solve(a, piv, lu_plan, mode, k5)
-                for i in range(n):
-                    yt[i] += k5[i]  # the embedded order-3 solution
-                _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    err_v[i] = f1[i] + (_C61 * k1[i] + _C62 * k2[i] + _C63 * k3[i] + _C64 * k4[i] + _C65 * k5[i]) / h
-                _it_solve(a, piv, lu_plan, mode, err_v)
+                err = _rodas4_stages(rhs, t, h, z, f0, ft, sc, isc, p, ex, aux, a, piv, lu_plan, mode, k1, k2, k3, k4, k5,
+                                     err_v, yt, znew, f1, y, dy, out, rtol, atol)
                 stats[ST_FEVALS] += 5
-                for i in range(n):
-                    znew[i] = yt[i] + err_v[i]  # the order-4 solution
-                    sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
-                    err += (err_v[i] / sk) ** 2
-                err = math.sqrt(err / n)
                 finite = math.isfinite(err)
             if fixed_h > 0.0:
                 if not finite:
@@ -198,3 +162,51 @@ def _rodas4_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t
         i_out += 1
     ctrl[CT_H] = h
     return float(OK), t_end, float(i_out)
+
+
+@njit(inline="always", **_JIT)
+def _rodas4_stages(rhs, t, h, z, f0, ft, sc, isc, p, ex, aux, a, piv, lu_plan, mode, k1, k2, k3, k4, k5, err_v, yt,
+                   znew, f1, y, dy, out, rtol, atol):
+    """The six stages of one Rodas4 step from (t, z) with step h [s] on the
+    factorisation ``a`` of I/(g h) - J: writes z_new and returns the scaled
+    RMS error estimate. Five RHS calls (stage 1 uses f0 = f(t, z))."""
+    n = z.shape[0]
+    err = 0.0
+    for i in range(n):
+        k1[i] = f0[i] + h * _D1 * ft[i]
+    _it_solve(a, piv, lu_plan, mode, k1)
+    for i in range(n):
+        yt[i] = z[i] + _A21 * k1[i]
+    _f(rhs, t + _C2 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        k2[i] = f1[i] + h * _D2 * ft[i] + _C21 * k1[i] / h
+    _it_solve(a, piv, lu_plan, mode, k2)
+    for i in range(n):
+        yt[i] = z[i] + _A31 * k1[i] + _A32 * k2[i]
+    _f(rhs, t + _C3 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        k3[i] = f1[i] + h * _D3 * ft[i] + (_C31 * k1[i] + _C32 * k2[i]) / h
+    _it_solve(a, piv, lu_plan, mode, k3)
+    for i in range(n):
+        yt[i] = z[i] + _A41 * k1[i] + _A42 * k2[i] + _A43 * k3[i]
+    _f(rhs, t + _C4 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        k4[i] = f1[i] + h * _D4 * ft[i] + (_C41 * k1[i] + _C42 * k2[i] + _C43 * k3[i]) / h
+    _it_solve(a, piv, lu_plan, mode, k4)
+    for i in range(n):
+        yt[i] = z[i] + _A51 * k1[i] + _A52 * k2[i] + _A53 * k3[i] + _A54 * k4[i]
+    _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        k5[i] = f1[i] + (_C51 * k1[i] + _C52 * k2[i] + _C53 * k3[i] + _C54 * k4[i]) / h
+    _it_solve(a, piv, lu_plan, mode, k5)
+    for i in range(n):
+        yt[i] += k5[i]  # the embedded order-3 solution
+    _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        err_v[i] = f1[i] + (_C61 * k1[i] + _C62 * k2[i] + _C63 * k3[i] + _C64 * k4[i] + _C65 * k5[i]) / h
+    _it_solve(a, piv, lu_plan, mode, err_v)
+    for i in range(n):
+        znew[i] = yt[i] + err_v[i]  # the order-4 solution
+        sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
+        err += (err_v[i] / sk) ** 2
+    return math.sqrt(err / n)

@@ -93,12 +93,8 @@ def _ros34pw2_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max,
             return float(MAX_STEPS), t, float(i_out)
         fresh = False
         if ctrl[CT_JAGE] >= JAC_MAX_AGE:
-            _fd_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl,
-                         y, dy, out)
-            stats[ST_FEVALS] += n_colours + 1
-            stats[ST_JACS] += 1
-            ctrl[CT_JAGE] = 0.0
-            fresh = True
+            fresh = _w_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1,
+                                zs, dl, y, dy, out, stats, ctrl)
             lu_h = -1.0
         while True:  # attempt steps until one is accepted
             stats[ST_STEPS] += 1
@@ -123,35 +119,9 @@ def _ros34pw2_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max,
             finite = ok
             err = 0.0
             if ok:
-                # stages in the variables u_i = sum_j g_ij k_j (no Jacobian products; module comment)
-                for i in range(n):
-                    u1[i] = f0[i] + _WG * h * ft[i]
-                _it_solve(a, piv, lu_plan, mode, u1)
-                for i in range(n):
-                    yt[i] = z[i] + _WU21 * u1[i]
-                _f(rhs, t + _WC2 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    u2[i] = f1[i] + _WGS2 * h * ft[i] + (_WC21 / h) * u1[i]
-                _it_solve(a, piv, lu_plan, mode, u2)
-                for i in range(n):
-                    yt[i] = z[i] + _WU31 * u1[i] + _WU32 * u2[i]
-                _f(rhs, t + _WC3 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    u3[i] = f1[i] + _WGS3 * h * ft[i] + (_WC31 / h) * u1[i] + (_WC32 / h) * u2[i]
-                _it_solve(a, piv, lu_plan, mode, u3)
-                for i in range(n):  # Y_4 = z + k_3
-                    yt[i] = z[i] + _WU41 * u1[i] + _WU42 * u2[i] + _WU43 * u3[i]
-                _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):  # gamma_4 = 0: no time-derivative term
-                    u4[i] = f1[i] + (_WC41 / h) * u1[i] + (_WC42 / h) * u2[i] + (_WC43 / h) * u3[i]
-                _it_solve(a, piv, lu_plan, mode, u4)
+                err = _w_stages(rhs, t, h, z, f0, ft, sc, isc, p, ex, aux, a, piv, lu_plan, mode, u1, u2, u3, u4, yt,
+                                znew, f1, y, dy, out, rtol, atol)
                 stats[ST_FEVALS] += 3
-                for i in range(n):
-                    e = _WE1 * u1[i] + _WE2 * u2[i] + _WE3 * u3[i] + _WE4 * u4[i]
-                    znew[i] = yt[i] + u4[i]  # Y_4 + u_4 (stiffly accurate)
-                    sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
-                    err += (e / sk) ** 2
-                err = math.sqrt(err / n)
                 finite = math.isfinite(err)
             if fixed_h > 0.0:
                 if not finite:
@@ -167,12 +137,8 @@ def _ros34pw2_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max,
                 else:
                     h *= 0.25
                 if not fresh:  # a stale Jacobian may be the culprit: rebuild it once
-                    _fd_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1,
-                                 zs, dl, y, dy, out)
-                    stats[ST_FEVALS] += n_colours + 1
-                    stats[ST_JACS] += 1
-                    ctrl[CT_JAGE] = 0.0
-                    fresh = True
+                    fresh = _w_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac,
+                                        ft, f1, zs, dl, y, dy, out, stats, ctrl)
                     lu_h = -1.0
                 continue
             fac = max(FAC_MIN, min(FAC_MAX, err ** (1.0 / 3.0) / SAFE))
@@ -198,21 +164,8 @@ def _ros34pw2_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max,
                 return float(NON_FINITE), t, float(i_out)
         _f(rhs, t_new, znew, sc, isc, p, ex, aux, fn, y, dy, out)
         stats[ST_FEVALS] += 1
-        # dense output: cubic Hermite through (z, f0) and (znew, fn)
-        while i_out < n_out and t_out[i_out] <= t_new * (1.0 + 1e-15):
-            s = (t_out[i_out] - t) / h
-            s2 = s * s
-            s3 = s2 * s
-            h00 = 2 * s3 - 3 * s2 + 1
-            h10 = s3 - 2 * s2 + s
-            h01 = -2 * s3 + 3 * s2
-            h11 = s3 - s2
-            for i in range(n):
-                zd[i] = h00 * z[i] + h10 * h * f0[i] + h01 * znew[i] + h11 * h * fn[i]
-            _f(rhs, t_out[i_out], zd, sc, isc, p, ex, aux, f1, y, dy, out)
-            for c in range(channels.shape[0]):
-                out_buf[i_out, c] = out[channels[c]]
-            i_out += 1
+        i_out = _hermite_output(rhs, t, h, z, f0, znew, fn, sc, isc, p, ex, aux, t_out, i_out, out_buf, channels, zd,
+                                f1, y, dy, out)
         for i in range(n):
             z[i] = znew[i]
             f0[i] = fn[i]
@@ -231,3 +184,79 @@ def _ros34pw2_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max,
         i_out += 1
     ctrl[CT_H] = h
     return float(OK), t_end, float(i_out)
+
+
+@njit(inline="always", **_JIT)
+def _w_stages(rhs, t, h, z, f0, ft, sc, isc, p, ex, aux, a, piv, lu_plan, mode, u1, u2, u3, u4, yt, znew, f1, y, dy,
+              out, rtol, atol):
+    """The four stages of one ROS34PW2 step from (t, z) with step h [s] in
+    the variables u_i (the constants' comment), on the factorisation ``a``
+    of I/(g h) - J: writes z_new and returns the scaled RMS error estimate.
+    Three RHS calls (stage 1 uses f0 = f(t, z))."""
+    n = z.shape[0]
+    for i in range(n):
+        u1[i] = f0[i] + _WG * h * ft[i]
+    _it_solve(a, piv, lu_plan, mode, u1)
+    for i in range(n):
+        yt[i] = z[i] + _WU21 * u1[i]
+    _f(rhs, t + _WC2 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        u2[i] = f1[i] + _WGS2 * h * ft[i] + (_WC21 / h) * u1[i]
+    _it_solve(a, piv, lu_plan, mode, u2)
+    for i in range(n):
+        yt[i] = z[i] + _WU31 * u1[i] + _WU32 * u2[i]
+    _f(rhs, t + _WC3 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        u3[i] = f1[i] + _WGS3 * h * ft[i] + (_WC31 / h) * u1[i] + (_WC32 / h) * u2[i]
+    _it_solve(a, piv, lu_plan, mode, u3)
+    for i in range(n):  # Y_4 = z + k_3
+        yt[i] = z[i] + _WU41 * u1[i] + _WU42 * u2[i] + _WU43 * u3[i]
+    _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):  # gamma_4 = 0: no time-derivative term
+        u4[i] = f1[i] + (_WC41 / h) * u1[i] + (_WC42 / h) * u2[i] + (_WC43 / h) * u3[i]
+    _it_solve(a, piv, lu_plan, mode, u4)
+    err = 0.0
+    for i in range(n):
+        e = _WE1 * u1[i] + _WE2 * u2[i] + _WE3 * u3[i] + _WE4 * u4[i]
+        znew[i] = yt[i] + u4[i]  # Y_4 + u_4 (stiffly accurate)
+        sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
+        err += (e / sk) ** 2
+    return math.sqrt(err / n)
+
+
+@njit(inline="always", **_JIT)
+def _w_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y, dy,
+                out, stats, ctrl):
+    """Rebuild the kept Jacobian and f_t at (t, z) (base point f0 = f(t, z)),
+    count it and reset its age. Returns True (the Jacobian is fresh)."""
+    _fd_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y, dy,
+                 out)
+    stats[ST_FEVALS] += n_colours + 1
+    stats[ST_JACS] += 1
+    ctrl[CT_JAGE] = 0.0
+    return True
+
+
+@njit(inline="always", **_JIT)
+def _hermite_output(rhs, t, h, z, f0, znew, fn, sc, isc, p, ex, aux, t_out, i_out, out_buf, channels, zd, f1, y, dy,
+                    out):
+    """Dense output of the step (t, t + h]: the state by cubic Hermite
+    interpolation through (z, f0) and (znew, fn) (order 3), the output
+    channels by the RHS at each requested time. Returns the next i_out."""
+    n = z.shape[0]
+    t_new = t + h
+    while i_out < t_out.shape[0] and t_out[i_out] <= t_new * (1.0 + 1e-15):
+        s = (t_out[i_out] - t) / h
+        s2 = s * s
+        s3 = s2 * s
+        h00 = 2 * s3 - 3 * s2 + 1
+        h10 = s3 - 2 * s2 + s
+        h01 = -2 * s3 + 3 * s2
+        h11 = s3 - s2
+        for i in range(n):
+            zd[i] = h00 * z[i] + h10 * h * f0[i] + h01 * znew[i] + h11 * h * fn[i]
+        _f(rhs, t_out[i_out], zd, sc, isc, p, ex, aux, f1, y, dy, out)
+        for c in range(channels.shape[0]):
+            out_buf[i_out, c] = out[channels[c]]
+        i_out += 1
+    return i_out
