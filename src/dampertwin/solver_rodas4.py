@@ -94,8 +94,8 @@ def _rodas4_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t
             finite = ok
             err = 0.0
             if ok:
-                err = _rodas4_stages(rhs, t, h, z, f0, ft, sc, isc, p, ex, aux, a, piv, lu_plan, mode, k1, k2, k3, k4, k5,
-                                     err_v, yt, znew, f1, y, dy, out, rtol, atol)
+                err = _rodas4_stages(rhs, t, h, z, f0, ft, sc, isc, p, ex, aux, a, piv, lu_plan, mode, k1, k2, k3, k4,
+                                     k5, err_v, yt, znew, f1, y, dy, out, rtol, atol)
                 stats[ST_FEVALS] += 5
                 finite = math.isfinite(err)
             if fixed_h > 0.0:
@@ -112,7 +112,7 @@ def _rodas4_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t
             fac = max(FAC_MIN, min(FAC_MAX, err ** 0.25 / SAFE))
             hnew = h / fac
             if err <= 1.0:
-                if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller
+                if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller (Hairer & Wanner II, IV.8, eq. (8.21))
                     facpred = (ctrl[CT_HOLD] / h) * (err * err / ctrl[CT_ERROLD]) ** 0.25 / SAFE
                     facpred = max(FAC_MIN, min(FAC_MAX, facpred))
                     fac = max(fac, facpred)

@@ -143,7 +143,7 @@ def _ros34pw2_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max,
                 continue
             fac = max(FAC_MIN, min(FAC_MAX, err ** (1.0 / 3.0) / SAFE))
             hnew = h / fac
-            if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller
+            if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller (Hairer & Wanner II, IV.8, eq. (8.21))
                 facpred = (ctrl[CT_HOLD] / h) * (err * err / ctrl[CT_ERROLD]) ** (1.0 / 3.0) / SAFE
                 facpred = max(FAC_MIN, min(FAC_MAX, facpred))
                 fac = max(fac, facpred)
