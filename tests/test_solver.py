@@ -194,6 +194,23 @@ def test_w_method_fixed_step_order_three_with_a_reused_jacobian():
     assert 2.6 <= slope <= 3.4, (errs, slope)
 
 
+def test_w_method_tables_in_u_form():
+    """The ROS34PW2 step runs in u = Gamma k and relies on the tables being
+    stiffly accurate (b = alpha_4 + gamma_4, so z_new = Y_4 + u_4) with
+    gamma_4 = 0 (no f_t term in stage 4); its u-form coefficients are
+    A' = A Gamma^-1, C' = diag(1/g) - Gamma^-1, e' = (b - b_hat) Gamma^-1."""
+    from dampertwin import solver_ros34pw2 as w
+
+    G, A = w._W_GAMMA, w._W_ALPHA
+    np.testing.assert_allclose(w._W_B, A[3] + G[3], rtol=0.0, atol=1e-15)
+    assert abs(G[3].sum()) < 1e-15
+    au = np.array([[0, 0, 0], [w._WU21, 0, 0], [w._WU31, w._WU32, 0], [w._WU41, w._WU42, w._WU43]])
+    cu = np.array([[0, 0, 0], [w._WC21, 0, 0], [w._WC31, w._WC32, 0], [w._WC41, w._WC42, w._WC43]])
+    np.testing.assert_allclose(np.c_[au, np.zeros(4)] @ G, A, atol=1e-14)
+    np.testing.assert_allclose((np.diag(1.0 / np.diag(G)) - np.c_[cu, np.zeros(4)]) @ G, np.eye(4), atol=1e-14)
+    np.testing.assert_allclose(np.array([w._WE1, w._WE2, w._WE3, w._WE4]) @ G, w._W_B - w._W_BHAT, atol=1e-14)
+
+
 @pytest.mark.parametrize("rtol", [1e-5, 1e-7])
 def test_w_method_global_error_and_dense_output(rtol):
     t_out = np.linspace(0.0, 4.0, 2001)

@@ -1,7 +1,7 @@
 """The integrator's linear algebra (dampertwin.solver): the dense LU with
 partial pivoting, the sparse LU of the iteration matrix along a static fill
-plan, the coloured finite-difference Jacobian and a sparse Jacobian-vector
-product."""
+plan (reciprocal pivots on its diagonal) and the coloured finite-difference
+Jacobian."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import numpy as np
 from numba import njit, types
 
 from .jit import lazy_njit
-from .solver_base import _A1, _A2, _I1, _JIT, FD_EPS, RHS, _f
+from .solver_base import _A1, _A2, _I1, _JIT, _JIT_NO_NRT, FD_EPS, RHS, _f
 
 
-@njit(**_JIT)
+@njit(**_JIT_NO_NRT)
 def _lu_factor(a, piv):
     n = a.shape[0]
     for k in range(n):
@@ -42,7 +42,7 @@ def _lu_factor(a, piv):
     return True
 
 
-@njit(**_JIT)
+@njit(**_JIT_NO_NRT)
 def _lu_solve(a, piv, b):
     n = a.shape[0]
     for k in range(n):
@@ -100,7 +100,8 @@ def _it_factor(jac, d, a, piv, plan):
     """Factorise the iteration matrix d I - jac into ``a`` (d = 1/(g h)).
     Sparse static-pivot LU along ``plan`` (:func:`lu_plan`) when it holds
     (pivots non-zero and finite, multipliers <= LU_MAX_MULT), otherwise the
-    dense LU with partial pivoting. Returns 1 (sparse), 2 (dense) or 0 (singular)."""
+    dense LU with partial pivoting. Returns 1 (sparse: the diagonal of ``a``
+    then holds the reciprocal pivots 1/U[k, k]), 2 (dense) or 0 (singular)."""
     n = plan[0]
     if plan[1] == 1:
         ep, up = 2, 3 + n
@@ -120,9 +121,11 @@ def _it_factor(jac, d, a, piv, plan):
             if pv == 0.0 or not math.isfinite(pv):
                 ok = False
                 break
+            ipv = 1.0 / pv
+            a[k, k] = ipv  # the solves multiply by it: no division on their dependency chain
             for q in range(plan[ep + k], plan[ep + k + 1]):
                 i = plan[er + q]
-                m = a[i, k] / pv
+                m = a[i, k] * ipv
                 if abs(m) > LU_MAX_MULT:
                     ok = False
                     break
@@ -164,10 +167,10 @@ def _it_solve(a, piv, plan, mode, b):
         for q in range(plan[up + i], plan[up + i + 1]):
             j = plan[uc + q]
             s -= a[i, j] * b[j]
-        b[i] = s / a[i, i]
+        b[i] = s * a[i, i]  # a[i, i] holds 1 / U[i, i]
 
 
-@njit(**_JIT)
+@njit(**_JIT_NO_NRT)
 def _fd_jacobian(rhs, t, z, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y, dy,
                  out):
     """Jacobian d(dz)/dz by coloured forward differences (Curtis, Powell &
@@ -212,13 +215,3 @@ def fd_jacobian(rhs, t, z, sc, p, ex, aux, colour, n_colours, col_ptr, row_idx, 
     _fd_jacobian(rhs, t, zz, f0, sc, isc, p, ex, aux, colour, n_colours, col_ptr, row_idx, jac, ft, f1, zs, dl, y, dy,
                  out)
 
-
-@njit(**_JIT)
-def _jac_mul_add(jac, col_ptr, row_idx, v, c, acc):
-    """acc += c * J v over the sparsity pattern (CSC)."""
-    for j in range(v.shape[0]):
-        vj = c * v[j]
-        if vj != 0.0:
-            for q in range(col_ptr[j], col_ptr[j + 1]):
-                r = row_idx[q]
-                acc[r] += jac[r, j] * vj

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
+from numba import njit
 
 from .jit import lazy_njit
 from .solver_base import (CT_ERROLD, CT_FIRST, CT_H, CT_HOLD, CT_REJECT, FAC_MAX, FAC_MIN, H_MIN_REL, MAX_STEPS,
                           NON_FINITE, OK, SAFE, STEP_UNDERFLOW, ST_ACCEPTED, ST_FEVALS, ST_JACS, ST_REJECTED, ST_STEPS,
-                          _JIT, _STEP_SIG, _f)
+                          _JIT, _JIT_NO_NRT, _STEP_SIG, _f, work_arrays)
 from .solver_linalg import _fd_jacobian, _it_factor, _it_solve
 
 # Rodas4 coefficients (Hairer & Wanner, RODAS, METH = 1)
@@ -33,6 +33,8 @@ _E21, _E22, _E23, _E24, _E25 = (0.1012623508344586e02, -0.7487995877610167e01, -
 _E31, _E32, _E33, _E34, _E35 = (-0.6762803392801253, 0.6087714651680015e01, 0.1643084320892478e02,
                                 0.2476722511418386e02, -0.6594389125716872e01)
 
+_N_WORK = 15  # work rows of the step loop besides 1/sc
+
 
 @lazy_njit(_STEP_SIG, **_JIT)
 def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
@@ -43,27 +45,24 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
     channels at t_out[i_out:] <= t into out_buf. ``fixed_h`` > 0 takes steps
     of exactly that size without error control (for convergence tests).
     Returns (status, t, i_out) as floats."""
+    w, a, piv, out = work_arrays(z, sc, _N_WORK, n_rhs_out)
+    return _rodas4_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+                        channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, fixed_h, jac,
+                        ft, w, a, piv, out)
+
+
+@njit(**_JIT_NO_NRT)
+def _rodas4_loop(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, i_out, out_buf,
+                 channels, ctrl, stats, max_steps, colour, n_colours, col_ptr, row_idx, lu_plan, fixed_h, jac, ft,
+                 w, a, piv, out):
+    """The step loop of :func:`rodas4` on the work arrays of
+    :func:`work_arrays` (it allocates nothing, so it runs without
+    reference counting)."""
     n = z.shape[0]
-    isc = 1.0 / sc
-    y = np.empty(n)
-    dy = np.empty(n)
-    out = np.empty(n_rhs_out)
-    f0 = np.empty(n)
-    f1 = np.empty(n)
-    dl = np.empty(n)
-    zs = np.empty(n)
-    a = np.empty((n, n))
-    piv = np.empty(n, np.int64)
+    isc, y, dy, f0, f1, dl, zs, k1, k2, k3, k4, k5, err_v, yt, znew, zd = (w[0], w[1], w[2], w[3], w[4], w[5], w[6],
+                                                                          w[7], w[8], w[9], w[10], w[11], w[12],
+                                                                          w[13], w[14], w[15])
     mode = 0
-    k1 = np.empty(n)
-    k2 = np.empty(n)
-    k3 = np.empty(n)
-    k4 = np.empty(n)
-    k5 = np.empty(n)
-    err_v = np.empty(n)
-    yt = np.empty(n)
-    znew = np.empty(n)
-    zd = np.empty(n)
     n_out = t_out.shape[0]
     h = fixed_h if fixed_h > 0.0 else ctrl[CT_H]
 
@@ -95,45 +94,9 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
             finite = ok
             err = 0.0
             if ok:
-                for i in range(n):
-                    k1[i] = f0[i] + h * _D1 * ft[i]
-                _it_solve(a, piv, lu_plan, mode, k1)
-                for i in range(n):
-                    yt[i] = z[i] + _A21 * k1[i]
-                _f(rhs, t + _C2 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    k2[i] = f1[i] + h * _D2 * ft[i] + _C21 * k1[i] / h
-                _it_solve(a, piv, lu_plan, mode, k2)
-                for i in range(n):
-                    yt[i] = z[i] + _A31 * k1[i] + _A32 * k2[i]
-                _f(rhs, t + _C3 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    k3[i] = f1[i] + h * _D3 * ft[i] + (_C31 * k1[i] + _C32 * k2[i]) / h
-                _it_solve(a, piv, lu_plan, mode, k3)
-                for i in range(n):
-                    yt[i] = z[i] + _A41 * k1[i] + _A42 * k2[i] + _A43 * k3[i]
-                _f(rhs, t + _C4 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    k4[i] = f1[i] + h * _D4 * ft[i] + (_C41 * k1[i] + _C42 * k2[i] + _C43 * k3[i]) / h
-                _it_solve(a, piv, lu_plan, mode, k4)
-                for i in range(n):
-                    yt[i] = z[i] + _A51 * k1[i] + _A52 * k2[i] + _A53 * k3[i] + _A54 * k4[i]
-                _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    k5[i] = f1[i] + (_C51 * k1[i] + _C52 * k2[i] + _C53 * k3[i] + _C54 * k4[i]) / h
-                _it_solve(a, piv, lu_plan, mode, k5)
-                for i in range(n):
-                    yt[i] += k5[i]  # the embedded order-3 solution
-                _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
-                for i in range(n):
-                    err_v[i] = f1[i] + (_C61 * k1[i] + _C62 * k2[i] + _C63 * k3[i] + _C64 * k4[i] + _C65 * k5[i]) / h
-                _it_solve(a, piv, lu_plan, mode, err_v)
+                err = _rodas4_stages(rhs, t, h, z, f0, ft, sc, isc, p, ex, aux, a, piv, lu_plan, mode, k1, k2, k3, k4,
+                                     k5, err_v, yt, znew, f1, y, dy, out, rtol, atol)
                 stats[ST_FEVALS] += 5
-                for i in range(n):
-                    znew[i] = yt[i] + err_v[i]  # the order-4 solution
-                    sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
-                    err += (err_v[i] / sk) ** 2
-                err = math.sqrt(err / n)
                 finite = math.isfinite(err)
             if fixed_h > 0.0:
                 if not finite:
@@ -149,7 +112,7 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
             fac = max(FAC_MIN, min(FAC_MAX, err ** 0.25 / SAFE))
             hnew = h / fac
             if err <= 1.0:
-                if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller
+                if ctrl[CT_FIRST] == 0.0:  # Gustafsson's predictive controller (Hairer & Wanner II, IV.8, eq. (8.21))
                     facpred = (ctrl[CT_HOLD] / h) * (err * err / ctrl[CT_ERROLD]) ** 0.25 / SAFE
                     facpred = max(FAC_MIN, min(FAC_MAX, facpred))
                     fac = max(fac, facpred)
@@ -199,3 +162,51 @@ def rodas4(rhs, z, t, t_end, t_pause, p, ex, aux, sc, rtol, atol, h_max, t_out, 
         i_out += 1
     ctrl[CT_H] = h
     return float(OK), t_end, float(i_out)
+
+
+@njit(inline="always", **_JIT)
+def _rodas4_stages(rhs, t, h, z, f0, ft, sc, isc, p, ex, aux, a, piv, lu_plan, mode, k1, k2, k3, k4, k5, err_v, yt,
+                   znew, f1, y, dy, out, rtol, atol):
+    """The six stages of one Rodas4 step from (t, z) with step h [s] on the
+    factorisation ``a`` of I/(g h) - J: writes z_new and returns the scaled
+    RMS error estimate. Five RHS calls (stage 1 uses f0 = f(t, z))."""
+    n = z.shape[0]
+    err = 0.0
+    for i in range(n):
+        k1[i] = f0[i] + h * _D1 * ft[i]
+    _it_solve(a, piv, lu_plan, mode, k1)
+    for i in range(n):
+        yt[i] = z[i] + _A21 * k1[i]
+    _f(rhs, t + _C2 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        k2[i] = f1[i] + h * _D2 * ft[i] + _C21 * k1[i] / h
+    _it_solve(a, piv, lu_plan, mode, k2)
+    for i in range(n):
+        yt[i] = z[i] + _A31 * k1[i] + _A32 * k2[i]
+    _f(rhs, t + _C3 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        k3[i] = f1[i] + h * _D3 * ft[i] + (_C31 * k1[i] + _C32 * k2[i]) / h
+    _it_solve(a, piv, lu_plan, mode, k3)
+    for i in range(n):
+        yt[i] = z[i] + _A41 * k1[i] + _A42 * k2[i] + _A43 * k3[i]
+    _f(rhs, t + _C4 * h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        k4[i] = f1[i] + h * _D4 * ft[i] + (_C41 * k1[i] + _C42 * k2[i] + _C43 * k3[i]) / h
+    _it_solve(a, piv, lu_plan, mode, k4)
+    for i in range(n):
+        yt[i] = z[i] + _A51 * k1[i] + _A52 * k2[i] + _A53 * k3[i] + _A54 * k4[i]
+    _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        k5[i] = f1[i] + (_C51 * k1[i] + _C52 * k2[i] + _C53 * k3[i] + _C54 * k4[i]) / h
+    _it_solve(a, piv, lu_plan, mode, k5)
+    for i in range(n):
+        yt[i] += k5[i]  # the embedded order-3 solution
+    _f(rhs, t + h, yt, sc, isc, p, ex, aux, f1, y, dy, out)
+    for i in range(n):
+        err_v[i] = f1[i] + (_C61 * k1[i] + _C62 * k2[i] + _C63 * k3[i] + _C64 * k4[i] + _C65 * k5[i]) / h
+    _it_solve(a, piv, lu_plan, mode, err_v)
+    for i in range(n):
+        znew[i] = yt[i] + err_v[i]  # the order-4 solution
+        sk = atol + rtol * max(abs(z[i]), abs(znew[i]))
+        err += (err_v[i] / sk) ** 2
+    return math.sqrt(err / n)
