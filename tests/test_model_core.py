@@ -6,6 +6,7 @@ from __future__ import annotations
 import faulthandler
 import inspect
 import math
+import os
 import re
 from pathlib import Path
 
@@ -250,3 +251,19 @@ def test_sparsity_cache_tells_the_flow_bench_valves_apart(base):
     after = run("base_compression")
     assert fresh.ok and after.ok
     assert np.array_equal(fresh["dp [Pa]"], after["dp [Pa]"])
+
+
+@pytest.mark.parametrize("module", ["dampertwin.solver", "dampertwin.truth", "dampertwin.model"])
+def test_every_compiled_package_uses_the_hashed_cache_folder(module):
+    """Importing only the solver (or only the truth) must still put numba's cache in the folder named
+    after the hash of every compiled source: numba's own per-file cache keeps the machine code of a
+    caller when a callee in another file changes (a stale step loop after a solver_*.py edit)."""
+    import subprocess
+    import sys
+
+    from dampertwin.numba_cache import cache_dir
+
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    code = f"import {module}, numba; print(numba.config.CACHE_DIR)"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    assert r.stdout.strip() == cache_dir()

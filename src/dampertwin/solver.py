@@ -28,7 +28,7 @@ collection or a ``--help`` should not pay it).
 Its parts: solver_base (signature, codes, controller constants, the scaled
 right-hand side, the step loops' work arrays), solver_linalg (LU, finite-difference Jacobian),
 solver_rodas4 and solver_ros34pw2 (the step loops); this module dispatches
-and drives them from Python (model.cache_sources hashes every solver_*.py
+and drives them from Python (numba_cache.cache_sources hashes every solver_*.py
 into numba's cache folder).
 """
 

@@ -4,8 +4,12 @@ the numba flags and the scaled right-hand side."""
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit, types
+from .numba_cache import configure as _configure_cache
+
+_configure_cache()  # before the first cached function below (also when only the solver is imported)
+
+import numpy as np  # noqa: E402
+from numba import njit, types  # noqa: E402
 
 
 def rhs_signature():

@@ -37,6 +37,10 @@ design loader (nominal values), never ``dampertwin.model`` (a test walks
 the imports; another compares function bodies).
 """
 
+from ..numba_cache import configure as _configure_cache
+
+_configure_cache()  # numba's cache folder before the truth's functions are decorated
+
 TRUTH_VERSION = "dampertwin-truth 2"  # 2: ports before the stacks, swept pilot, walls across chambers, passive Payne
 
 
