@@ -291,6 +291,25 @@ def lab_peaks(measured_dir: Path, frequency: float) -> dict[str, tuple[float, fl
     return out
 
 
+def _peak_changes(tab: pd.DataFrame, thesis: dict[str, tuple[float, float]], resolution: float):
+    """Per table-6.5 case (the ``factor``-less ok rows of ``tab``) and
+    half-cycle: (case, j, half, change of |peak| vs the baseline here [g],
+    the same change in the thesis column ``thesis`` [g]); rows whose thesis
+    change is below ``resolution`` (no direction) left out."""
+    ok = tab[(tab.get("factor", "") == "") & (tab.status == "ok")].set_index("case")
+    if BASELINE_CASE not in ok.index or BASELINE_CASE not in thesis:
+        return
+    for case in ok.index:
+        if case == BASELINE_CASE or case not in thesis:
+            continue
+        for j, half in enumerate(("rebound", "compression")):
+            col = f"{half} peak [g]"
+            d_sim = abs(ok.loc[case, col]) - abs(ok.loc[BASELINE_CASE, col])
+            d_th = abs(thesis[case][j]) - abs(thesis[BASELINE_CASE][j])
+            if abs(d_th) >= resolution:
+                yield case, j, half, d_sim, d_th
+
+
 def trend_table(tab: pd.DataFrame, lab: dict[str, tuple[float, float]] | None = None,
                 resolution: float = TREND_RESOLUTION) -> pd.DataFrame:
     """Per table-6.5 case and half-cycle: the change of |peak| vs the
@@ -301,36 +320,25 @@ def trend_table(tab: pd.DataFrame, lab: dict[str, tuple[float, float]] | None = 
     the lab sample shares points to the lab sample's physics differing from
     the thesis' part; one the lab sample contradicts points to the model or
     its calibration; otherwise "unexplained"."""
-    ok = tab[(tab.get("factor", "") == "") & (tab.status == "ok")].set_index("case")
-    if BASELINE_CASE not in ok.index:
-        return pd.DataFrame()
     rows = []
-    for case in ok.index:
-        if case == BASELINE_CASE or case not in THESIS_MEASURED:
-            continue
-        for j, half in enumerate(("rebound", "compression")):
-            col = f"{half} peak [g]"
-            d_sim = abs(ok.loc[case, col]) - abs(ok.loc[BASELINE_CASE, col])
-            d_th = abs(THESIS_MEASURED[case][j]) - abs(THESIS_MEASURED[BASELINE_CASE][j])
-            d_lab = (abs(lab[case][j]) - abs(lab[BASELINE_CASE][j])
-                     if lab and case in lab and BASELINE_CASE in lab else np.nan)
-            if abs(d_th) < resolution:
-                continue  # no thesis direction to compare with
-            agree = bool(np.sign(d_sim) == np.sign(d_th)) and abs(d_sim) >= resolution
-            if agree:
-                reason = ""
-            elif abs(d_sim) < resolution:
-                reason = f"simulated change {d_sim:+.2f} g below the {resolution:g} g resolution: no direction"
-            elif np.isfinite(d_lab) and abs(d_lab) >= resolution and np.sign(d_lab) == np.sign(d_sim):
-                reason = ("lab sample physics vs thesis part: the lab measurement moves the same way as the "
-                          f"model ({d_lab:+.2f} g)")
-            elif np.isfinite(d_lab) and abs(d_lab) >= resolution and np.sign(d_lab) == np.sign(d_th):
-                reason = f"model defect or calibration: the lab measurement moves as the thesis ({d_lab:+.2f} g)"
-            else:
-                reason = "unexplained"
-            rows.append({"case": case, "half-cycle": half, "change simulated [g]": float(d_sim),
-                         "change thesis measured [g]": float(d_th), "change lab measured [g]": float(d_lab),
-                         "agrees": agree, "reason": reason})
+    for case, j, half, d_sim, d_th in _peak_changes(tab, THESIS_MEASURED, resolution):
+        d_lab = (abs(lab[case][j]) - abs(lab[BASELINE_CASE][j])
+                 if lab and case in lab and BASELINE_CASE in lab else np.nan)
+        agree = bool(np.sign(d_sim) == np.sign(d_th)) and abs(d_sim) >= resolution
+        if agree:
+            reason = ""
+        elif abs(d_sim) < resolution:
+            reason = f"simulated change {d_sim:+.2f} g below the {resolution:g} g resolution: no direction"
+        elif np.isfinite(d_lab) and abs(d_lab) >= resolution and np.sign(d_lab) == np.sign(d_sim):
+            reason = ("lab sample physics vs thesis part: the lab measurement moves the same way as the "
+                      f"model ({d_lab:+.2f} g)")
+        elif np.isfinite(d_lab) and abs(d_lab) >= resolution and np.sign(d_lab) == np.sign(d_th):
+            reason = f"model defect or calibration: the lab measurement moves as the thesis ({d_lab:+.2f} g)"
+        else:
+            reason = "unexplained"
+        rows.append({"case": case, "half-cycle": half, "change simulated [g]": float(d_sim),
+                     "change thesis measured [g]": float(d_th), "change lab measured [g]": float(d_lab),
+                     "agrees": agree, "reason": reason})
     return pd.DataFrame(rows)
 
 
@@ -342,25 +350,14 @@ def simulated_trend_table(tab: pd.DataFrame, thesis_simulated: dict[str, tuple[f
     item 4), and whether the directions agree. A thesis change below
     ``resolution`` has no direction (row left out); a change here below it
     disagrees, with that reason."""
-    ok = tab[(tab.get("factor", "") == "") & (tab.status == "ok")].set_index("case")
-    if BASELINE_CASE not in ok.index or BASELINE_CASE not in thesis_simulated:
-        return pd.DataFrame()
     rows = []
-    for case in ok.index:
-        if case == BASELINE_CASE or case not in thesis_simulated:
-            continue
-        for j, half in enumerate(("rebound", "compression")):
-            col = f"{half} peak [g]"
-            d_sim = abs(ok.loc[case, col]) - abs(ok.loc[BASELINE_CASE, col])
-            d_ts = abs(thesis_simulated[case][j]) - abs(thesis_simulated[BASELINE_CASE][j])
-            if abs(d_ts) < resolution:
-                continue
-            agree = bool(np.sign(d_sim) == np.sign(d_ts)) and abs(d_sim) >= resolution
-            reason = ("" if agree else f"simulated change {d_sim:+.2f} g below the {resolution:g} g resolution: "
-                      "no direction" if abs(d_sim) < resolution else
-                      f"opposite direction: {d_sim:+.2f} g here, {d_ts:+.2f} g in the thesis' model")
-            rows.append({"case": case, "half-cycle": half, "change simulated [g]": float(d_sim),
-                         "change thesis simulated [g]": float(d_ts), "agrees": agree, "reason": reason})
+    for case, _, half, d_sim, d_ts in _peak_changes(tab, thesis_simulated, resolution):
+        agree = bool(np.sign(d_sim) == np.sign(d_ts)) and abs(d_sim) >= resolution
+        reason = ("" if agree else f"simulated change {d_sim:+.2f} g below the {resolution:g} g resolution: "
+                  "no direction" if abs(d_sim) < resolution else
+                  f"opposite direction: {d_sim:+.2f} g here, {d_ts:+.2f} g in the thesis' model")
+        rows.append({"case": case, "half-cycle": half, "change simulated [g]": float(d_sim),
+                     "change thesis simulated [g]": float(d_ts), "agrees": agree, "reason": reason})
     return pd.DataFrame(rows)
 
 
