@@ -301,10 +301,29 @@ def jacobian(f, params: list[FactorParam], theta0: dict, step: float, z0: np.nda
     S = np.zeros((len(z0), len(params)))
     for j, p in enumerate(params):
         t0 = float(theta0.get(p.name, 1.0))
-        h = step if math.log(t0) + step <= math.log(p.hi) + 1e-12 else -step
+        h = float(fd_steps([p], theta0, step)[0])
         z = f({**theta0, p.name: t0 * math.exp(h)})
         S[:, j] = (z - z0) / h
     return z0, S
+
+
+def fd_steps(params: list[FactorParam], theta: dict, step: float) -> np.ndarray:
+    """The signed step in ln theta that :func:`jacobian` takes per parameter."""
+    return np.array([step if math.log(float(theta.get(p.name, 1.0))) + step <= math.log(p.hi) + 1e-12 else -step
+                     for p in params])
+
+
+def kpi_jumps(cells: list[Cell], values, S: np.ndarray, params: list[FactorParam], theta: dict,
+              step: float) -> np.ndarray:
+    """(cells, params) True where a finite-difference step flipped the sign of
+    a peak cell: the thesis' literal KPI (THESIS-ERRATA 38) jumped between
+    the half-cycle's positive and negative extreme. Such an entry is a
+    discontinuity, not a slope: it is left out of the SVD and the fit."""
+    v = np.asarray(values, float)[:, None]
+    sig = np.array([c.sigma for c in cells])[:, None]
+    pert = v - sig * np.nan_to_num(S) * fd_steps(params, theta, step)[None, :]  # z = (thesis - v) / sigma
+    peak = np.array([c.unit == "%" for c in cells])[:, None]
+    return peak & (np.sign(pert) != np.sign(v))
 
 
 def identifiability(S: np.ndarray, params: list[FactorParam], threshold: float) -> dict:
@@ -359,6 +378,6 @@ def to_u_columns(S: np.ndarray, params: list[FactorParam], names: list[str]) -> 
     return {n: S[:, idx[n]] * 2.0 * params[idx[n]].half_log_range for n in names}
 
 
-__all__ = ["Cell", "FactorParam", "Simulator", "case_overrides", "cells_of", "diffs", "fit", "identifiability",
-           "jacobian", "load_params", "make_problem", "map_coefficients", "random_protocol", "scaled_residual",
-           "to_u_columns"]
+__all__ = ["Cell", "FactorParam", "Simulator", "case_overrides", "cells_of", "diffs", "fd_steps", "fit",
+           "identifiability", "jacobian", "kpi_jumps", "load_params", "make_problem", "map_coefficients",
+           "random_protocol", "scaled_residual", "to_u_columns"]

@@ -134,3 +134,16 @@ def test_scaled_residual_is_one_at_the_targets_edge():
         z = ic.scaled_residual(cells, v)
         agree = [ic.tc.agrees(d, c.unit) for c, d in zip(cells, ic.diffs(cells, v))]
         assert list(np.abs(z) <= 1.0) == agree
+
+
+def test_kpi_jumps_flag_sign_flips_of_peaks_only():
+    """A step that flips a peak's sign is a jump of the literal KPI; the same
+    change on a PSD cell (dB, any sign) is a slope."""
+    ps = [ic.FactorParam("a", ("x",), 0.5, 2.0), ic.FactorParam("b", ("y",), 0.5, 2.0)]
+    cells = [ic.Cell("6.5", 1, "baseline_1.6", "rebound", 2.0), ic.Cell("6.6", 1, "baseline_1.6", "f200", -5.0)]
+    values = [0.1, -5.0]
+    # z = (thesis - v) / sigma; a step h = 0.05 changes v by -sigma * S * h
+    S = np.array([[10.0 / (0.3 * 0.05), 0.01], [-100.0, 0.0]])  # a: v 0.1 -> -9.9 (flip); b: tiny
+    J = ic.kpi_jumps(cells, values, S, ps, {}, 0.05)
+    assert J.tolist() == [[True, False], [False, False]]
+    assert ic.fd_steps(ps, {"a": 2.0}, 0.05).tolist() == [-0.05, 0.05]  # at the upper bound: the other way
