@@ -404,7 +404,7 @@ def main(argv: list[str]) -> int:
     if "--from-json" in argv:
         res = json.loads(OUT_JSON.read_text())
     else:
-        res = json.loads(json.dumps(clean(run_study(pub, doc))))
+        res = json.loads(json.dumps(clean(run_study(pub, doc)), sort_keys=True))  # the order of the stored JSON
     res = clean(postprocess({**res, "_pub": pub}, doc))
     res.pop("_pub")
     tc.atomic_write(OUT_JSON, json.dumps(res, indent=1, sort_keys=True) + "\n")
