@@ -235,7 +235,8 @@ def run_study(pub: dict, doc: dict) -> dict:
         "spectrum dependence before": spectrum_dependence(S0, cells, params),
         "spectrum dependence after": spectrum_dependence(S1, cells, params),
         "rounds": rounds,
-        "cost": {"simulation sets": sim.count, "runs per set": runs_per_set(cells), "cpu [s]": time.process_time() - t_cpu,
+        "cost": {"simulation sets": sim.count, "runs per set": runs_per_set(cells),
+                 "cpu [s]": time.process_time() - t_cpu,
                  "wall [s]": time.time() - t_wall},
         "fitted subset": names, "half log ranges": {p.name: by[p.name].half_log_range for p in params},
         "jacobian nominal": {"rows": [c.label for c in cells], "columns": [p.name for p in params], "S": S0.tolist()},
@@ -323,7 +324,8 @@ def reading(res: dict, pub: dict) -> list[str]:
     jumps_text = ("The thesis' literal peak KPI (signed max |a| of a half-cycle) jumps between the positive and "
                   "the negative extreme where the two are close. " + (
                       f"At the fit, a 5 % step of {len(j1[0]['parameters'])} of the parameters flips cell "
-                      f"{j1[0]['cell']} (value {cells[j1[0]['cell']]['after']:.2f} g; the thesis' {cells[j1[0]['cell']]['thesis']:.1f} g): "
+                      f"{j1[0]['cell']} (value {cells[j1[0]['cell']]['after']:.2f} g; the thesis' "
+                      f"{cells[j1[0]['cell']]['thesis']:.1f} g): "
                       "the fit sits on that edge. Those Jacobian entries are jumps, not slopes; they are set to 0 "
                       "in the SVD above and in the fit's Jacobian. "
                       if j1 else "") + (f"At the nominal design: {', '.join(j['cell'] for j in j0)}." if j0 else
@@ -342,7 +344,8 @@ def reading(res: dict, pub: dict) -> list[str]:
            f"that move no cell by a tolerance over half their range (column norm < {thr:g}): "
            f"{', '.join('`' + n + '`' for n in blind) or 'none'}: the published tables do not determine them. "
            "Parameters the cells see, but only in combinations they do not "
-           f"separate (column norm >= {thr:g}, share < 0.5): {', '.join('`' + n + '`' for n in weak) or 'none'}. 'Determined' is local (a linearisation at the "
+           f"separate (column norm >= {thr:g}, share < 0.5): {', '.join('`' + n + '`' for n in weak) or 'none'}. "
+           "'Determined' is local (a linearisation at the "
            "nominal design and again at the fit) and relative to the ranges; it does not make a value right, "
            "only constrained by these 52 numbers.", "",
            f"At the fit the determined set is {res['identifiability fit']['rank']} directions; the pivoted QR "

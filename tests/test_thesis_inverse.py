@@ -121,7 +121,8 @@ def test_map_and_spectrum_factors_and_bad_config():
     with pytest.raises(ValueError, match="inv.yaml.*expected 0 < lo < 1 < hi"):
         ic.load_params({"parameters": [{"name": "x", "keys": ["geometry.M_rod"], "lo": 1.1, "hi": 2}]}, "inv.yaml")
     with pytest.raises(ValueError, match="do not reproduce"):
-        ic.check_maps(load(ROOT / "conf" / "design" / "baseline.yaml"), {"active_valve_baseline.csv": {**coef, "gain": 1e-9}})
+        ic.check_maps(load(ROOT / "conf" / "design" / "baseline.yaml"),
+                      {"active_valve_baseline.csv": {**coef, "gain": 1e-9}})
 
 
 def test_scaled_residual_is_one_at_the_targets_edge():
