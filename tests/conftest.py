@@ -7,6 +7,18 @@ ROOT = Path(__file__).resolve().parents[1]
 BASELINE = ROOT / "conf" / "design" / "baseline.yaml"
 sys.path.insert(0, str(Path(__file__).parent))
 
+# pytest-xdist workers for `-n auto` (pyproject's addopts): one per core, at most 4. Each worker compiles
+# the numba kernels its tests call on a cold cache and holds ~1.2 GB, so more workers gain little and cost
+# memory. `-n 0` runs serially (a debugger, `-x` on the first failure in order).
+XDIST_MAX_WORKERS = 4
+
+
+def pytest_xdist_auto_num_workers(config):
+    import os
+
+    return max(1, min(XDIST_MAX_WORKERS, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                      else os.cpu_count() or 1))
+
 
 # Session-scoped data shared by several test modules: one copy per run of the suite (a fixture
 # imported from another test module is a second fixture with its own module-scoped copy). Pure

@@ -206,6 +206,15 @@ def _prepare(sc, sparsity, n, atol, rtol, channels, n_rhs_out):
     return sc, sp, float(atol), np.ascontiguousarray(channels, np.int64)
 
 
+def _compile(*kernels) -> None:
+    """Compile (or load from numba's cache) the lazy kernels a run calls
+    before its wall clock starts: ``max_wall_s`` caps the integration, not
+    the compilation (a cold cache on a loaded machine once took longer than
+    a caller's cap, and the run ended as WALL_TIME before its first step)."""
+    for k in kernels:
+        getattr(k, "dispatcher", None)
+
+
 def integrate(rhs, p, ex, aux, y0, t_out, *, scales=None, n_rhs_out=1, sparsity=None, rtol=1e-4, atol=None,
               h0=1e-6, h_max=1e-3, max_steps=2_000_000, max_wall_s=None, chunk_s=0.05, channels=None,
               fixed_h=0.0, method="rodas4"):
@@ -233,6 +242,7 @@ def integrate(rhs, p, ex, aux, y0, t_out, *, scales=None, n_rhs_out=1, sparsity=
     t = float(t_out[0])
     i_out = 0
     status = OK
+    _compile(step_chunk, rhs)
     t0w = time.perf_counter()
     t_final = float(t_out[-1])
     step = chunk_s if max_wall_s is not None else (t_final - t)
@@ -284,6 +294,7 @@ def integrate_batch(rhs, P, ex, aux, Y0, t_out, *, scales=None, n_rhs_out=1, spa
     aux = np.ascontiguousarray(aux, float)
     t_final = float(t_out[-1])
     t = float(t_out[0])
+    _compile(_batch_chunk, step_chunk, rhs)
     t0w = time.perf_counter()
     step = chunk_s if (max_wall_s is not None or progress is not None) else (t_final - t)
     while np.any(STATUS < 0):
