@@ -157,7 +157,6 @@ def _sim_runs():
     """Closure running the nominal design per (case, test); cached."""
     from dampertwin.design import load, yaml_load_file
     from dampertwin.protocols import build_runs, load_protocol
-    from dampertwin.simulation import simulate
     from dampertwin.variants import load_variant
 
     base = load(ROOT / "conf" / "design" / "baseline.yaml")
@@ -173,16 +172,24 @@ def _sim_runs():
         runs = build_runs(proto, seed)
         if proto["protocol"] in ("monosine", "random"):
             runs = [r for r in runs if abs(r.current - v.current) < 1e-9]
-        out = []
-        for r in runs:
-            res = simulate(d, r.excitation, r.configuration, current=r.current, rate=r.rate)
-            if not res.ok:
-                raise RuntimeError(f"{case}/{test}/{r.name}: simulation failed: {res.stats.message}")
-            out.append((r, res.to_frame()))
-        cache[(case, test)] = (d, proto, out)
+        cache[(case, test)] = (d, proto, simulate_runs(d, runs, f"{case}/{test}"))
         return cache[(case, test)]
 
     return frames
+
+
+def simulate_runs(d, runs, label: str) -> list:
+    """[(run, its simulated frame)] of design ``d`` for each run; a failed
+    simulation raises, naming ``label`` and the run."""
+    from dampertwin.simulation import simulate
+
+    out = []
+    for r in runs:
+        res = simulate(d, r.excitation, r.configuration, current=r.current, rate=r.rate)
+        if not res.ok:
+            raise RuntimeError(f"{label}/{r.name}: simulation failed: {res.stats.message}")
+        out.append((r, res.to_frame()))
+    return out
 
 
 def project_values(pub: dict, frames) -> dict:

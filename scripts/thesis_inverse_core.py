@@ -209,7 +209,7 @@ class Simulator:
     def frames(self, theta: dict):
         """A ``frames(case, test)`` closure as scripts/thesis_comparison.py's, at factors ``theta``."""
         from dampertwin.protocols import build_runs
-        from dampertwin.simulation import simulate
+        from thesis_comparison import simulate_runs
         import make_active_valve_maps as mk
 
         base, cache = self._ctx["base"], {}
@@ -225,13 +225,7 @@ class Simulator:
             if test == "random":
                 proto = random_protocol(proto, self.params, theta)
             runs = [r for r in build_runs(proto, self._ctx["seed"]) if abs(r.current - v.current) < 1e-9]
-            out = []
-            for r in runs:
-                res = simulate(d, r.excitation, r.configuration, current=r.current, rate=r.rate)
-                if not res.ok:
-                    raise RuntimeError(f"{case}/{test}/{r.name}: simulation failed: {res.stats.message}")
-                out.append((r, res.to_frame()))
-            cache[(case, test)] = (d, proto, out)
+            cache[(case, test)] = (d, proto, simulate_runs(d, runs, f"{case}/{test}"))
             return cache[(case, test)]
 
         return frames
