@@ -79,6 +79,8 @@ def load_params(doc: dict, where: str) -> list[FactorParam]:
             raise ValueError(f"{where}: parameters[{i}] ({fp.name}): bounds [{fp.lo}, {fp.hi}]; "
                              f"expected 0 < lo < 1 < hi (factors on the nominal value)")
         out.append(fp)
+    if not out:
+        raise ValueError(f"{where}: parameters: empty or missing; expected a list of name, keys, lo, hi entries")
     if len({p.name for p in out}) != len(out):
         raise ValueError(f"{where}: duplicated parameter names")
     return out

@@ -120,6 +120,8 @@ def test_map_and_spectrum_factors_and_bad_config():
     assert p["bands"][1]["rms"] == 6e-5 and p["bands"][0]["rms"] == 1e-3 and proto["bands"][1]["rms"] == 3e-5
     with pytest.raises(ValueError, match="inv.yaml.*expected 0 < lo < 1 < hi"):
         ic.load_params({"parameters": [{"name": "x", "keys": ["geometry.M_rod"], "lo": 1.1, "hi": 2}]}, "inv.yaml")
+    with pytest.raises(ValueError, match="inv.yaml: parameters: empty or missing"):
+        ic.load_params({}, "inv.yaml")
     with pytest.raises(ValueError, match="do not reproduce"):
         ic.check_maps(load(ROOT / "conf" / "design" / "baseline.yaml"),
                       {"active_valve_baseline.csv": {**coef, "gain": 1e-9}})
