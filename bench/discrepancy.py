@@ -208,34 +208,70 @@ def approach1_design(conf: Path, data: Path, seed: int, out: Path) -> Path:
     return path
 
 
-def one_case(it: dict) -> dict:
-    """Lab records of one hidden-effect case (SYNTHETIC), then the workflow from the nominal design."""
-    conf, work, k = Path(it["conf"]), Path(it["work"]), it["k"]
-    s = hidden_sample(it["base"], **it["spec"])
+def _generate(it: dict, spec: dict, name: str) -> bool:
+    """Lab records of ``spec`` into WORK/name (SYNTHETIC), the case's seed, tests and artefact; True when
+    the records of an earlier run were reused. A rerun in the same --work folder reuses them when
+    everything that made them is the same (sample, seed, tests, artefact, LAB_VERSION, truth tolerances:
+    a lab code change without a version bump is not seen, use a new --work then); the stamp is written
+    last, so a killed generation is redone."""
+    conf, work = Path(it["conf"]), Path(it["work"])
+    s = hidden_sample(it["base"], **spec)
     if "truth" not in s:  # lab 2: the part is the nominal design's (lab 3 names its drawings itself)
         s["nominal"] = str(conf / "lab" / "nominal.yaml")
-    sp = work / f"case{k}.yaml"
+    sp = work / f"{name}.yaml"
     sp.write_text(yaml.safe_dump(s))
-    data = work / f"case{k}"
-    t1 = time.time()
-    art = it["art"]
-    # a rerun in the same --work folder reuses a case's lab records when everything that made them is the
-    # same (sample, seed, tests, artefact, LAB_VERSION, truth tolerances: a lab code change without a version
-    # bump is not seen, use a new --work then); the stamp is written last, so a killed generation is redone
+    data, art = work / name, it["art"]
     stamp = data / ".case.json"
     made = json.dumps({"sample": sp.read_text(), "seed": it["seed"], "only": [list(x) for x in it["only"]],
                        "art": art, "lab": LAB_VERSION, "truth": [TRUTH_RTOL, TRUTH_ATOL]},
                       sort_keys=True)
-    reused = stamp.is_file() and stamp.read_text() == made
-    if not reused:
-        shutil.rmtree(data, ignore_errors=True)
-        run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=it["lab_workers"], conf=conf)
-        if art is not None:
-            for f in data.glob("*/*.parquet"):
-                df = pq.read_table(f).to_pandas()
-                df = accelerometer_resonance(df, art[1], art[2]) if art[0] == "accel" else loadcell_crosstalk(df, art[1])
-                write_frame(f, df, {**read_meta(f), "artefact": list(art)})
-        stamp.write_text(made)
+    if stamp.is_file() and stamp.read_text() == made:
+        return True
+    shutil.rmtree(data, ignore_errors=True)
+    run_lab(sp, data, seed=it["seed"], only=it["only"], progress=False, workers=it["lab_workers"], conf=conf)
+    if art is not None:
+        for f in data.glob("*/*.parquet"):
+            df = pq.read_table(f).to_pandas()
+            df = accelerometer_resonance(df, art[1], art[2]) if art[0] == "accel" else loadcell_crosstalk(df, art[1])
+            write_frame(f, df, {**read_meta(f), "artefact": list(art)})
+    stamp.write_text(made)
+    return False
+
+
+def visibility(conf: Path, data: Path, data_off: Path, tests: dict) -> dict:
+    """How far the hidden effects move the records, in the workflow's own noise units: the records of
+    the case (``data``) against the same part, seed and lab noise without the hidden effects
+    (``data_off``), whitened by the workflow's noise model (features.noise on the measured scatter,
+    the bench allowances; Problem.set_noise). ``ratio`` is the workflow's record gate on that
+    difference (decision.worst_record: chi^2 / its Bonferroni quantile): above 1, a model without
+    any model error would see the effect in ``record``; ``rms_z`` over every feature."""
+    from dampertwin.discrepancy.decision import worst_record
+    from dampertwin.discrepancy.problem import Problem, Row
+
+    cfg = entry.load_config(conf)
+    prof = cfg["profiles"]["ci"]
+    d = entry.load_design(conf / "design" / "baseline.yaml", conf)
+    on, variants, _ = entry.read_units(data, d, conf, cfg["features"], prof, tests)
+    off, _, _ = entry.read_units(data_off, d, conf, cfg["features"], prof, tests)
+    if [u.key for u in on] != [u.key for u in off]:
+        raise SystemExit(f"{data} and {data_off}: different records")
+    problem = Problem(on, cfg["features"], variants, progress=False)
+    problem.set_noise(Row([np.full_like(u.per_cycle, np.nan) for u in off]))  # the measured scatter alone
+    z = problem.z(Row([u.per_cycle for u in off]))
+    ratio, record = worst_record(problem, z, np.ones(len(z), bool), float(cfg["decision"]["record_alpha"]))
+    return {"ratio": round(ratio, 4), "record": record, "rms_z": round(float(np.sqrt(np.mean(z * z))), 4)}
+
+
+def one_case(it: dict) -> dict:
+    """Lab records of one hidden-effect case (SYNTHETIC), then the workflow from its starting design."""
+    conf, work, k = Path(it["conf"]), Path(it["work"]), it["k"]
+    data = work / f"case{k}"
+    t1 = time.time()
+    reused = _generate(it, it["spec"], f"case{k}")
+    seen = None
+    if it.get("visibility") and it["truth"]:  # the same case without its hidden effects
+        _generate(it, {q: v for q, v in it["spec"].items() if q != "effects"}, f"case{k}_off")
+        seen = visibility(conf, data, work / f"case{k}_off", it["tests"])
     t_lab = time.time() - t1
     start = conf / "design" / "baseline.yaml"
     if it["start"] == "approach1":  # as the study: the workflow starts from the approach-1 calibrated design
@@ -247,7 +283,11 @@ def one_case(it: dict) -> dict:
     rfile = work / f"out{k}" / "resolvability.json"   # written with `none` verdicts
     rs = {r["effect"]: r for r in json.loads(rfile.read_text())} if rfile.is_file() else {}
     return {"cell": it["cell"], "truth": it["truth"], "verdict": doc["verdict"], "effects": doc["effects"],
-            "group": doc["group"], "closed": doc["gap"]["closed_fraction"], "lab_s": round(t_lab, 1), "lab_reused": reused,
+            "group": doc["group"], "closed": doc["gap"]["closed_fraction"], "gap_before": doc["gap"]["before"],
+            "gap_after": doc["gap"]["after"],
+            # where the start design and the records disagree most (the model error a control leaves)
+            "where": [f"{w['test']}/{w['case']} {w['phase_or_band']}: {w['excess']:g}" for w in doc["where"][:3]],
+            "visibility": seen, "lab_s": round(t_lab, 1), "lab_reused": reused,
             "start": it["start"], "start_s": round(t_start, 1),
             "case_s": round(time.time() - t1, 1),
             # the workflow's own statement that the records could not show the hidden effect
@@ -294,6 +334,10 @@ def main(argv=None) -> int:
                                         "monosine:baseline_0.32,random:baseline_1.6,curving:baseline,thermal:baseline,"
                                         "friction:baseline,topmount:baseline",
                     help="lab records generated per case (the ci profile's tests; topmount for the approach-1 start)")
+    ap.add_argument("--visibility", action="store_true",
+                    help="also generate each single / pair case without its hidden effects (same part, seed and "
+                         "noise) and report how far the effects move the records in the workflow's noise units "
+                         "(row `visibility`; the rates among the cases a model without model error would see)")
     ap.add_argument("--lab-workers", type=int, default=None,
                     help="processes generating one case's lab records and simulating its records in the workflow "
                          "(default: all cores locally, 1 per case on a cluster)")
@@ -318,7 +362,7 @@ def main(argv=None) -> int:
     plan, names = truth_cases(args, base, rng) if args.lab == "truth" else cases(args, design, cfg, rng)
     if args.start == "approach1" and not {"flowbench", "compliance", "topmount"} <= set(tests):
         raise SystemExit("--start approach1 needs flowbench, compliance and topmount records in --tests")
-    items = [{"k": k, "lab": args.lab, "start": args.start, "cell": cell, "truth": truth, "spec": spec, "art": art, "seed": int(rng.integers(0, 2**31)),
+    items = [{"k": k, "lab": args.lab, "start": args.start, "visibility": args.visibility, "cell": cell, "truth": truth, "spec": spec, "art": art, "seed": int(rng.integers(0, 2**31)),
               "base": base, "conf": str(conf), "work": str(work), "only": only, "tests": tests,
               "lab_workers": args.lab_workers or (1 if args.scheduler or args.jobs > 1 else os.cpu_count() or 1)}
              for k, (cell, truth, spec, art) in enumerate(plan)]
@@ -363,6 +407,8 @@ def main(argv=None) -> int:
     def wrong_name(r):  # a named effect outside every hidden effect's family
         fam = families(r["truth"], args.lab)
         return r["verdict"] == "named" and not set(r["effects"]) <= fam
+    def visible(r):
+        return bool(r.get("visibility")) and r["visibility"]["ratio"] > 1.0
     per_effect = {n: rate(lambda r, n=n: r["cell"] == "single" and r["truth"] == [n], named_true) for n in names}
     counts = {}
     for r in rows:
@@ -383,11 +429,20 @@ def main(argv=None) -> int:
         "single_missed_flagged_unresolvable": sum(1 for r in rows if r["cell"] == "single" and r["verdict"] == "none"
                                                   and r.get("truth_unresolvable")),
         "single_wrong_family_rate": rate(lambda r: r["cell"] == "single", wrong_name),
+        # --visibility: among the single cases whose hidden effect moves some record past the workflow's
+        # record gate (a model without model error would see it) / the share of such cases
+        "single_named_rate_visible": rate(lambda r: r["cell"] == "single" and visible(r), named_true),
+        "single_visible_share": rate(lambda r: r["cell"] == "single" and r.get("visibility"), visible),
+        "pair_wrong_family_rate": rate(lambda r: r["cell"] == "pair", wrong_name),
         "pair_both_named_rate": rate(lambda r: r["cell"] == "pair", lambda r: r["verdict"] == "named" and all(
             set(r["effects"]) & families([n], args.lab) for n in r["truth"])),
         "artefact_unexplained_rate": rate(lambda r: r["cell"] == "artefact", lambda r: r["verdict"] == "unexplained"),
         "artefact_confident_wrong_rate": rate(lambda r: r["cell"] == "artefact", lambda r: r["verdict"] == "named"),
         "median_closed_fraction_named": float(np.median(named_closed)) if named_closed else None,
+        # the held-out gap (RMS whitened residual, 1 = noise) the start design leaves: on a control it is the
+        # model error of the truth that the calibration refit and the allowances did not absorb
+        "median_gap_before": {c: float(np.median([r["gap_before"] for r in rows if r["cell"] == c]))
+                              for c in sorted({r["cell"] for r in rows})},
         "wall_s_per_case": round((time.time() - t0) / max(len(rows), 1), 1),
     }
     print(json.dumps(out))
