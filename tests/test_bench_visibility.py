@@ -1,10 +1,11 @@
-"""bench/discrepancy.py --visibility: how far a hidden truth effect moves the lab records in the
+"""bench/discrepancy.py --visibility and bench/model_error.py. --visibility: how far a hidden truth effect moves the lab records in the
 workflow's own noise units (SYNTHETIC records of the 13 Hz mono-sine test at 1.6 A, the same part,
 seed and noise with and without the effect)."""
 
 from __future__ import annotations
 
 import importlib.util
+import json
 from pathlib import Path
 
 import pytest
@@ -54,3 +55,26 @@ def test_the_new_parts_band_eccentricity_is_below_the_gate(bench, records):
     mono-sine record's noise (the matrix's band cases are invisible by this measure)."""
     v = bench.visibility(ROOT / "conf", records / "band", records / "off", TESTS)
     assert 0.0 <= v["ratio"] < 0.1, v
+
+
+def test_model_error_by_test_and_a_diagnostic_design(bench, records, capsys):
+    """bench/model_error.py on a case folder: the start design (here the baseline) against the truth's
+    records, test by test; a --set design with a 3x stiffer top mount moves the mono-sine record, one
+    with the start's own value gives the start's figures exactly (the noise model is the start's)."""
+    import shutil
+
+    spec = importlib.util.spec_from_file_location("bench_model_error", ROOT / "bench" / "model_error.py")
+    me = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(me)
+    shutil.copytree(records / "off", records / "case0", dirs_exist_ok=True)
+    from dampertwin.design import load
+
+    k0 = load(ROOT / "conf" / "design" / "baseline.yaml")["top_mount.k0"]
+    assert me.main(["--work", str(records), "--case", "0", "--set", f"top_mount.k0={k0}",
+                    "--set", f"top_mount.k0={3 * k0}"]) == 0
+    start, same, stiff = [json.loads(x) for x in capsys.readouterr().out.strip().splitlines()]
+    assert set(start["mean_z2_by_test"]) == {"monosine/baseline_1.6"} and start["gap"] > 0
+    assert same["gap"] == start["gap"] and same["mean_z2_by_test"] == start["mean_z2_by_test"]
+    assert stiff["gap"] != start["gap"]
+    with pytest.raises(SystemExit, match="expected key=value"):
+        me.main(["--work", str(records), "--case", "0", "--set", "top_mount.k0"])
