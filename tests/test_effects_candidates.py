@@ -248,3 +248,31 @@ def test_every_hidden_truth_effect_has_a_documented_family():
         assert any(h in r.truth_effects for r in EFFECTS_LIBRARY.values()), h
     for r in EFFECTS_LIBRARY.values():  # a new candidate documents what it approximates, both ways
         assert bool(r.truth) == bool(r.truth_effects), r.name
+
+
+def test_the_matrix_tells_the_truths_always_on_physics_from_foreign_names():
+    """bench/discrepancy.py: on the truth lab every case carries the truth's always-on physics (gas
+    dissolution, oil heating, the solenoid valve, ...), whose library approximations are off in the
+    start design; a control naming aeration + oil_thermal names physics the truth has, a control
+    naming piston_leakage (a worn band, hidden only) names physics it has not."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("bench_discrepancy",
+                                                  Path(__file__).resolve().parents[1] / "bench" / "discrepancy.py")
+    bd = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bd)
+    always = bd.always_on_families("truth")
+    assert {"aeration", "gas_release", "oil_thermal", "fixture_resonance"} <= always, always
+    assert not {"piston_leakage", "top_mount_backlash"} & always, always  # band / free play: hidden only
+    assert bd.always_on_families("library") == set()
+    control = {"cell": "control", "truth": [], "verdict": "named", "effects": ["aeration", "oil_thermal"], "group": []}
+    assert not bd.foreign(control, "truth", always)
+    assert bd.foreign({**control, "effects": ["aeration", "piston_leakage"]}, "truth", always)
+    assert not bd.foreign({**control, "verdict": "unexplained", "effects": []}, "truth", always)
+    play = {"cell": "single", "truth": ["top_mount_free_play"], "verdict": "named", "group": [],
+            "effects": ["aeration", "top_mount_backlash"]}
+    assert bd.named_beside(play, "truth") and not bd.foreign(play, "truth", always)
+    assert not bd.named_beside({**play, "effects": ["aeration"]}, "truth")
+    assert bd.named_beside({**play, "verdict": "ambiguous", "effects": ["aeration"],
+                            "group": ["aeration", "top_mount_backlash"]}, "truth")
