@@ -107,3 +107,29 @@ def test_model_error_attributed_to_the_truths_physics(bench, records, capsys):
     for bad in ("band_eccentricity", "no_such_effect", ""):
         with pytest.raises(SystemExit, match="always-on effects joined by"):
             me.main(["--work", str(records), "--case", "0", "--truth-off", bad])
+
+
+def test_the_matrix_hides_a_worn_band_and_entrainment_that_starts(bench):
+    """The truth lab's single / pair cells: a band is hidden WORN (its clearance scaled from 30 um, never
+    near the new part's 8 um, which no record resolves), entrained air with its onset above the sample's
+    precharge (the truth's own 2.5 bar onset is never reached in these tests); the other cells as before."""
+    import argparse
+
+    import numpy as np
+
+    from dampertwin.truth.params import TRUTH_NOMINAL
+
+    base = {k: v for k, v in bench.load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    args = argparse.Namespace(controls=1, per_effect=1, pairs=6, artefacts=0, magnitudes=[0.6, 1.5], effects=None,
+                              dev_scale=1.5)
+    plan, hidden = bench.truth_cases(args, base, np.random.default_rng(0))
+    band = [s for cell, t, s, _ in plan if "band_eccentricity" in t]
+    assert len(band) == 2 + 3 and all(s["values"]["chambers.BAND_H"] > 2 * TRUTH_NOMINAL["chambers.BAND_H"]
+                                      and s["effects"]["band_eccentricity"]["eccentricity"] > 0 for s in band), band
+    air = [s["effects"]["air_entrainment"] for cell, t, s, _ in plan if "air_entrainment" in t]
+    precharge = bench.load(ROOT / "conf" / "lab" / "nominal.yaml")["oil.P_0"]
+    assert air and all(a["onset_pressure"] > precharge and a["fraction"] > 0 for a in air), air
+    free = [s for cell, t, s, _ in plan if t == ["top_mount_free_play"]]
+    assert free and all(s["values"] == {} for s in free)  # an effect parameter only: the part stays nominal
+    control = [s for cell, t, s, _ in plan if cell == "control"]
+    assert control and "effects" not in control[0]
