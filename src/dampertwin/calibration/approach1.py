@@ -81,8 +81,9 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
                 lo, hi = max(lo, p.bounds[0]), min(hi, p.bounds[1])
         if not lo < hi:
             raise UserError(f"{label}: empty search interval for {key}: [{lo}, {hi}]")
-        if it.get("scale") == "log" and lo <= 0:
-            raise UserError(f"{label}: a log scale needs a positive lower bound, got {lo}")
+        if it.get("scale") == "log" and not lo * hi > 0:
+            raise UserError(f"{label}: a log scale needs bounds of one sign, neither zero (log of the magnitude "
+                            f"for a negative parameter, e.g. a spring exponent d of eq. 4.19), got [{lo}, {hi}]")
         specs.append(ParamSpec(key, lo, hi, it.get("scale", "lin")))
     return specs
 

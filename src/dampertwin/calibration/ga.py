@@ -50,7 +50,7 @@ class ParamSpec:
     key: str
     lo: float
     hi: float
-    scale: str = "lin"  # "lin" | "log" (log needs lo > 0)
+    scale: str = "lin"  # "lin" | "log" (log: lo, hi of one sign, uniform in log |value|)
     start: float | None = None  # start value [SI] (None: the design's)
     # Gaussian prior (value [SI], sigma in the normalised coordinate u): the Gauss-Newton refits' Tikhonov
     # rows (u - u(value)) / sigma; None: no prior (the GAs search the bounds alone)
@@ -96,7 +96,7 @@ class ParamSpec:
 
     def to_gene(self, v):
         if self.scale == "log":
-            return float(np.clip(math.log(v / self.lo) / math.log(self.hi / self.lo), 0, 1))
+            return self.to_u(float(v))
         return float(np.clip((v - self.lo) / (self.hi - self.lo), 0, 1))
 
 
@@ -191,7 +191,7 @@ def bound_hits(specs: list[ParamSpec], values: dict[str, float], *, tol: float =
     out = []
     for i, s in enumerate(specs):
         v = float(values[s.key])
-        g = s.to_gene(v) if (s.scale != "log" or v > 0) else 0.0
+        g = s.to_gene(v) if (s.scale != "log" or v / s.lo > 0) else 0.0
         for end, near in ((0, g <= tol), (1, g >= 1.0 - tol)):
             if near:
                 out.append({"parameter": s.key, "bound": "lower" if end == 0 else "upper", "value": v,
