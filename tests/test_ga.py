@@ -25,6 +25,11 @@ def test_param_spec_maps_genes_to_bounds():
     assert s.to_value(0.0) == pytest.approx(100.0) and s.to_value(1.0) == pytest.approx(1e4)
     assert s.to_value(0.5) == pytest.approx(1e3)
     assert s.to_gene(1e3) == pytest.approx(0.5)
+    # a negative interval on a log scale is uniform in log |value| (a spring exponent d of eq. 4.19)
+    n = ParamSpec("d", -1e5, -1e3, "log")
+    assert n.to_value(0.0) == pytest.approx(-1e5) and n.to_value(1.0) == pytest.approx(-1e3)
+    assert n.to_value(0.5) == pytest.approx(-1e4) and n.to_gene(-1e4) == pytest.approx(0.5)
+    assert n.to_u(n.to_v(0.3)) == pytest.approx(0.3) and n.to_gene(0.0) == 1.0  # clipped into the interval
 
 
 def test_ga_improves_on_the_start_is_seeded_and_counts_failures():
@@ -121,10 +126,13 @@ def test_bad_calibration_config_names_file_and_item():
     d = load(BASELINE)
     ok = specs_from_config(d, [{"name": "a", "window": [0.5, 2.0]}], prefix="piston_rebound.", where="v.yaml")
     assert ok[0].lo == pytest.approx(150.0) and ok[0].hi == pytest.approx(600.0)
+    (neg,) = specs_from_config(d, [{"name": "d", "window": [0.1, 10.0], "scale": "log"}], prefix="piston_rebound.")
+    assert (neg.lo, neg.hi, neg.scale) == (-1e5, pytest.approx(-1500.0), "log")  # clipped to table 6.1's -1e5
     for bad, why in (([{"name": "zz", "window": [0.5, 2]}], "unknown design parameter"),
                      ([{"name": "a"}], "exactly one of"),
                      ([{"name": "a", "window": [0.5, 2], "scale": "cubic"}], "scale"),
-                     ([{"name": "c", "window": [0.5, 2], "scale": "log"}], "positive lower bound"),
+                     ([{"name": "c", "bounds": [-100.0, 100.0], "scale": "log"}], "bounds of one sign"),
+                     ([{"name": "d", "bounds": [-1e4, 0.0], "scale": "log"}], "bounds of one sign"),
                      ([], "non-empty list")):
         with pytest.raises(ValueError, match=why) as ei:
             specs_from_config(d, bad, prefix="piston_rebound.", where="v.yaml")
