@@ -232,7 +232,7 @@ def approach1_design(conf: Path, data: Path, seed: int, out: Path) -> Path:
     for k, v in enumerate(VALVES):
         meas, _ = read_record(data / "flowbench" / f"{v}.parquet", "flowbench", conf=conf, valve=v)
         res = fit_valve(base, v, meas, cal, GASettings.from_config(prof.ga.valves), seed + k, bench=bench,
-                        progress=False, polish_settings=pol)
+                        progress=False, polish_settings=PolishSettings.from_config(prof.polish, "valves"))
         d = d.with_overrides(res.best)
     keep = lambda b: {k: x for k, x in b.items() if not k.startswith("sensor.")}  # noqa: E731 (nuisance keys)
     bw = load_protocol(conf / "test" / "compliance.yaml").get("sensors", {}).get("force")

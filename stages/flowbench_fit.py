@@ -32,7 +32,7 @@ def fit_record(d, valve: str, path, profile, seed: int, checkpoint=None):
     meas, _ = read_record(path, "flowbench", conf=CONF, valve=valve)
     res = fit_valve(d, valve, meas, cal, GASettings.from_config(profile["ga"]["valves"]), seed, bench=bench,
                     checkpoint=checkpoint, scheduler=profile.get("scheduler"),
-                    polish_settings=PolishSettings.from_config(profile["polish"]))
+                    polish_settings=PolishSettings.from_config(profile["polish"], "valves"))
     return res, meas, fb, bench
 
 

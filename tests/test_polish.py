@@ -50,3 +50,17 @@ def test_polish_keeps_the_ga_result_when_it_cannot_improve():
     assert out.best_objective <= j_before
     if out.best_objective == j_before:
         assert out.best == pytest.approx(best_before)
+
+
+def test_a_fits_own_polish_budget_overrides_the_profiles():
+    """conf/profile/ci.yaml gives the valve fits their own polish budget
+    (``polish.valves``); the other fits keep the profile's."""
+    from omegaconf import OmegaConf
+
+    from conftest import ROOT
+
+    ci = OmegaConf.load(ROOT / "conf" / "profile" / "ci.yaml").polish
+    assert PolishSettings.from_config(ci, "valves") == PolishSettings(starts=1, max_nfev=12)
+    assert PolishSettings.from_config(ci) == PolishSettings.from_config(ci, "compliance") == PolishSettings(1, 6)
+    full = OmegaConf.load(ROOT / "conf" / "profile" / "full.yaml").polish
+    assert PolishSettings.from_config(full, "valves") == PolishSettings.from_config(full) == PolishSettings(3, 20)

@@ -53,7 +53,11 @@ class PolishSettings:
     min_distance: float = 0.05
 
     @classmethod
-    def from_config(cls, c) -> "PolishSettings":
+    def from_config(cls, c, fit: str | None = None) -> "PolishSettings":
+        """From a profile's ``polish`` mapping; a sub-mapping named ``fit``
+        (e.g. ``valves``) overrides its keys for that fit's polish."""
+        if fit is not None and fit in c:
+            c = {**{k: v for k, v in c.items() if not hasattr(v, "items")}, **c[fit]}
         return cls(int(c["starts"]), int(c["max_nfev"]), float(c.get("step", 1e-3)),
                    float(c.get("min_distance", 0.05)))
 
