@@ -79,10 +79,13 @@ def test_rule_from_config_is_checked_and_shipped_windows_follow_approach_1():
         with pytest.raises(UserError, match=f"approach2.yaml: identifiability.*{why}"):
             det.Rule.from_config(bad)
     bench = yaml_load_file(CONF / "calibration" / "valves.yaml")
-    for kind in ("shim", "intake"):  # every table-6.1 parameter of approach 1, with its window
+    for kind in ("shim", "intake"):  # every table-6.1 parameter of approach 1, its window inside approach 1's
         a1 = {i["name"]: i.get("window", i.get("bounds")) for i in bench[kind]}
         a2_ = {i["name"]: i.get("window", i.get("bounds")) for i in cal["parameters"][kind]}
-        assert a2_ == a1, kind
+        assert set(a2_) == set(a1), kind
+        # approach 2 keeps the 0.5-2 factor windows: on the damper-level record one parameter per valve
+        # is determined, and a two-decade window would let the undetermined ones wander (approach2.yaml)
+        assert all(a1[n][0] <= a2_[n][0] < a2_[n][1] <= a1[n][1] for n in a1), kind
 
 
 def test_fit_fits_exactly_the_determined_set(short_training):  # the fixture: conftest.py
