@@ -65,7 +65,7 @@ def _valve(prof: dict, d, meas: Path):
     return fit_valve(d, "piston_rebound", rec, yaml_load_file(CONF / "calibration" / "valves.yaml"),
                      GASettings.from_config(prof["ga"]["valves"]), _seed("flowbench_fit/piston_rebound"),
                      bench={"bench_volume": fb["volume"], "bench_back_pressure": fb["back_pressure"]},
-                     progress=False, polish_settings=PolishSettings.from_config(prof["polish"]))
+                     progress=False, polish_settings=PolishSettings.from_config(prof["polish"], "valves"))
 
 
 def _compliance(prof: dict, d, meas: Path):

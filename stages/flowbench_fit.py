@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt
 from _common import (CONF, OUT, baseline, checkpoint, checkpoint_store, choice, config, measured_dir, seed_for,
                      stage, staged_dir, write_fit)
 from dampertwin import report
-from dampertwin.calibration.approach1 import fit_valve
+from dampertwin.calibration.approach1 import fit_valve, valve_objective_name
 from dampertwin.calibration.ga import GASettings
 from dampertwin.calibration.identifiability import valve_report
 from dampertwin.design import yaml_load_file
@@ -46,8 +46,9 @@ def main(name: str) -> None:
     seed = seed_for(f"flowbench_fit/{name}")
     res, meas, fb, bench = fit_record(d, valve, measured_dir() / "flowbench" / f"{name}.parquet", cfg.profile, seed,
                                       checkpoint=checkpoint_store(f"valve_{name}"))
+    obj_name, obj_unit = valve_objective_name(yaml_load_file(CONF / "calibration" / "valves.yaml"))
     meta = {"fit": "flowbench_fit", "valve": valve, "valve_design": name, "profile": cfg.profile.name, "seed": seed,
-            "objective": "eq. 6.1 int|dp_test - dp_sim| dt [Pa*s]"}
+            "objective": obj_name}
     run = next(r for r in build_runs(fb) if r.bench_valve == valve)
     sim = simulate(d.with_overrides(res.best), run.excitation, "valve", bench_valve=valve, rate=run.rate,
                    bench=bench)
@@ -55,7 +56,7 @@ def main(name: str) -> None:
     determined = valve_report(d.with_overrides(res.best), valve, res.uncertainty, res.specs,
                               float(sim.to_frame()["lift [m]"].max()))
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "Pa*s", d.hash(), extra={"determined": determined})
+        write_fit(tmp, res, meta, obj_unit, d.hash(), extra={"determined": determined})
         fig = report.pq_figure({valve: meas}, {valve: sim.to_frame()}, f"{name}: flow bench, measured vs fitted model")
         fig.savefig(tmp / "pq.png", dpi=100)
         plt.close(fig)

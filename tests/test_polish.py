@@ -64,3 +64,17 @@ def test_a_fits_own_polish_budget_overrides_the_profiles():
     assert PolishSettings.from_config(ci) == PolishSettings.from_config(ci, "compliance") == PolishSettings(1, 6)
     full = OmegaConf.load(ROOT / "conf" / "profile" / "full.yaml").polish
     assert PolishSettings.from_config(full, "valves") == PolishSettings.from_config(full) == PolishSettings(3, 20)
+
+
+def test_a_mistyped_polish_key_is_named_not_ignored():
+    """A sub-mapping or setting the polish does not know (``valve:`` for
+    ``valves:``, ``max_nfevs``) is an error naming it, not a silent default."""
+    from dampertwin.errors import UserError
+
+    for bad, name in [({"starts": 1, "max_nfev": 6, "valve": {"max_nfev": 12}}, "'valve'"),
+                      ({"starts": 1, "max_nfev": 6, "max_nfevs": 4}, "'max_nfevs'"),
+                      ({"starts": 1, "max_nfev": 6, "valves": {"max_nfevs": 12}}, "'valves'")]:
+        with pytest.raises(UserError, match=name):
+            PolishSettings.from_config(bad, "valves")
+        with pytest.raises(UserError, match=name):
+            PolishSettings.from_config(bad)

@@ -139,7 +139,8 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
         d, valve, list(zip(map(str, [data, *predict]), frames)), items, cutoff=cutoff, bench=_flowbench_bench(cfg),
         settings=cf.ga_settings(cfg, population, generations),
         polish_settings=PolishSettings.from_config(cfg.get("polish") or cf.DEFAULT_POLISH), seed=seed,
-        where=cfg.get("_where", "valve search space"), scheduler=scheduler)
+        where=cfg.get("_where", "valve search space"), scheduler=scheduler,
+        objective=cfg.get("objective", _study_doc("valves.yaml").get("objective")))
     _with_shas(result, out)
     if out is not None:
         series_plots(Path(out), problem, sims, "dp [Pa]", "valve",

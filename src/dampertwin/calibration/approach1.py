@@ -101,13 +101,14 @@ def trapezoid_weights(t: np.ndarray) -> np.ndarray:
 
 
 def _records(design: Design, specs, cases, configuration: str, channel, max_wall_s: float | None = None,
-             **sim_kw) -> Records:
+             weight_factor: np.ndarray | None = None, **sim_kw) -> Records:
     """Residuals measured - simulated of a batch of parameter rows over
     several records, with the reason of every failed row (NaN row): an
     invalid design, a simulation that stops early or is not finite; the rest
     of the population is scored. Design keys go to the design, ``sensor.*``
     keys to the channel (measurement chain). Each simulate_batch call is
-    capped at ``max_wall_s`` [s] (profile config)."""
+    capped at ``max_wall_s`` [s] (profile config). ``weight_factor``: per
+    sample factors on the trapezoid weights (a weighted objective)."""
     keys = [s.key for s in specs]
     dk = [i for i, k in enumerate(keys) if not k.startswith(NUISANCE)]
     nk = [i for i, k in enumerate(keys) if k.startswith(NUISANCE)]
@@ -163,7 +164,8 @@ def _records(design: Design, specs, cases, configuration: str, channel, max_wall
         return _records(design, specs, cases, configuration, channel, max_wall_s,
                         **{**sim_kw, "rtol": UNCERTAINTY_RTOL, "atol": UNCERTAINTY_ATOL}).residuals(X)
 
-    return Records(residuals, np.concatenate([trapezoid_weights(c[0]) for c in cases]), [len(c[0]) for c in cases],
+    w = np.concatenate([trapezoid_weights(c[0]) for c in cases])
+    return Records(residuals, w if weight_factor is None else w * weight_factor, [len(c[0]) for c in cases],
                    precise=None if sim_kw.get("rtol") == UNCERTAINTY_RTOL else precise)
 
 
@@ -218,12 +220,49 @@ def record_input(df: pd.DataFrame, column: str, kind: str, cutoff: float):
     return t, Excitation.from_samples(t, df[column].to_numpy(), kind=kind, cutoff=cutoff)
 
 
+VALVE_WEIGHTINGS = ("absolute", "relative")
+
+
+def valve_objective(cal: dict, where: str = "conf/calibration/valves.yaml") -> tuple[str, float]:
+    """(weighting, dp_floor [Pa]) of the flow-bench objective from the
+    config's ``objective`` mapping (absent: eq. 6.1 as printed). ``absolute``:
+    eq. 6.1, J = int |dp_test - dp_sim| dt [Pa*s]; ``relative``: J = int
+    |dp_test - dp_sim| / max(|dp_test|, dp_floor) dt [s], so the low-flow
+    end of the ramp (a few per cent of its seconds and of its pressure)
+    weighs as much per second as its top (docs/explanation/approach1.md)."""
+    o = cal.get("objective") if isinstance(cal, dict) else None
+    if o is None:
+        return "absolute", 0.0
+    if not isinstance(o, dict) or set(o) - {"weighting", "dp_floor"}:
+        raise UserError(f"{where}: objective: expected a mapping with 'weighting' ({' or '.join(VALVE_WEIGHTINGS)}) "
+                        f"and, for relative, 'dp_floor' [Pa], got {o!r}")
+    w = o.get("weighting", "absolute")
+    if w not in VALVE_WEIGHTINGS:
+        raise UserError(f"{where}: objective.weighting must be one of {', '.join(VALVE_WEIGHTINGS)}, got {w!r}")
+    if w == "absolute":
+        return w, 0.0
+    f = o.get("dp_floor")
+    if isinstance(f, bool) or not isinstance(f, (int, float)) or not np.isfinite(f) or f <= 0:
+        raise UserError(f"{where}: objective.dp_floor must be a positive pressure [Pa] for the relative "
+                        f"weighting, got {f!r}")
+    return w, float(f)
+
+
+def valve_objective_name(cal: dict) -> tuple[str, str]:
+    """(the flow-bench objective's name, its unit) for reports."""
+    w, f = valve_objective(cal)
+    if w == "absolute":
+        return "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]", "Pa*s"
+    return f"eq. 6.1 relative: int |dp_test - dp_sim| / max(|dp_test|, {f:g} Pa) dt [s]", "s"
+
+
 def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, settings: GASettings, seed: int, *,
               bench: dict, checkpoint=None, scheduler=None, progress=True,
               polish_settings: PolishSettings | None = None) -> FitResult:
-    """Fit one valve's stiffness, preload (and shim friction) to its
+    """Fit one valve's stiffness, preload (and shim friction, bleed) to its
     flow-bench record: GA, then (with ``polish_settings``) local polish and
-    uncertainty at the optimum."""
+    uncertainty at the optimum; the objective's weighting from ``cal``
+    (:func:`valve_objective`)."""
     kind = "shim" if valve in SHIM_VALVES else "intake"
     specs = specs_from_config(design, cal.get(kind), prefix=f"{valve}.",
                               where=f"conf/calibration/valves.yaml: {kind}")
@@ -233,7 +272,11 @@ def fit_valve(design: Design, valve: str, measured: pd.DataFrame, cal: dict, set
         cases.append((t, g["dp [Pa]"].to_numpy(), ex, {"bench_valve": valve}))
     ch = Channel(("p upstream [Pa]", "p downstream [Pa]"),
                   lambda c, nuis: c["p upstream [Pa]"] - c["p downstream [Pa]"])
-    rec = _records(design, specs, cases, "valve", ch, settings.max_wall_s, bench=bench)
+    weighting, floor = valve_objective(cal)
+    dp = np.concatenate([c[1] for c in cases])
+    rec = _records(design, specs, cases, "valve", ch, settings.max_wall_s,
+                   weight_factor=1.0 / np.maximum(np.abs(dp), floor) if weighting == "relative" else None,
+                   bench=bench)
     x0 = {s.key: design[s.key] for s in specs}
     return run(rec, specs, settings, seed=seed, x0=x0, polish_settings=polish_settings, checkpoint=checkpoint,
                scheduler=scheduler, label=f"valve {valve}", progress=progress, context=_context(design, measured))

@@ -30,8 +30,8 @@ import pandas as pd
 from ..design import Design
 from ..io import runs
 from . import friction_fit as _ff
-from .approach1 import (SHIM_VALVES, Channel, fit_static_curve, fit_valve, force_chain_nominal,
-                        record_input, specs_from_config, through_sensor)
+from .approach1 import (SHIM_VALVES, Channel, fit_static_curve, fit_valve, force_chain_nominal, record_input,
+                        specs_from_config, through_sensor, valve_objective, valve_objective_name)
 from .friction_fit import nrmse
 from .ga import FitError, GASettings
 from .problem import Problem, RecordsAbs
@@ -215,21 +215,29 @@ def _cases(frames, column: str, output: str, kind: str, cutoff: float, extra_of)
 
 
 def fit_valve_records(design: Design, valve: str, frames, items, *, cutoff: float, bench: dict, settings: GASettings,
-                      polish_settings, seed: int, where: str = "valve search space", scheduler=None):
+                      polish_settings, seed: int, where: str = "valve search space", scheduler=None,
+                      objective: dict | None = None):
     """Fit one valve's stiffness a, b, c, d (and shim friction F_c) on
     flow-bench records ``frames`` [(name, frame), ...] (first fitted, the
     others predicted; ``flow [m^3/s]`` input, ``dp [Pa]`` output, eq. 6.1)
     by the study stage's function :func:`~.approach1.fit_valve` (GA, polish,
     uncertainty). ``items``: search items of the valve kind (as in
     conf/calibration/valves.yaml); ``cutoff`` [Hz]: input low-pass;
-    ``bench``: upstream volume [m^3] and back pressure [Pa]."""
+    ``bench``: upstream volume [m^3] and back pressure [Pa]; ``objective``:
+    its weighting (:func:`~.approach1.valve_objective`; None: eq. 6.1)."""
     from .uncertainty import summary
 
     if valve not in VALVES:
         raise FitError(f"unknown valve {valve!r}; expected {', '.join(VALVES)}")
     kind = "shim" if valve in SHIM_VALVES else "intake"
     specs = search_specs(design, items, f"{valve}.", where)
-    cal = {kind: [{"key": s.key, "bounds": [s.lo, s.hi], "scale": s.scale} for s in specs], "input_cutoff": cutoff}
+    cal = {kind: [{"key": s.key, "bounds": [s.lo, s.hi], "scale": s.scale} for s in specs], "input_cutoff": cutoff,
+           **({"objective": dict(objective)} if objective is not None else {})}
+    try:
+        valve_objective(cal, where)  # a bad objective names the config it came from
+    except ValueError as e:
+        raise FitError(str(e)) from None
+    obj_name, _ = valve_objective_name(cal)
     try:
         res = fit_valve(design, valve, frames[0][1], cal, settings, seed, bench=bench, progress=False,
                         polish_settings=polish_settings, scheduler=scheduler)
@@ -241,7 +249,7 @@ def fit_valve_records(design: Design, valve: str, frames, items, *, cutoff: floa
     unc = res.uncertainty
     ci = summary(unc) if "error" not in unc else {"error": unc["error"]}
     return report(prob, res, specs, ci, "valve", settings, seed,
-                  {"valve": valve, "objective_name": "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]",
+                  {"valve": valve, "objective_name": obj_name,
                    "polish": res.polish, "bench": bench,
                    "determined": valve_determined(design, valve, res, specs, files[0][1], bench)})
 

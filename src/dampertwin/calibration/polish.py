@@ -24,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import UserError
 from .ga import FitResult, ParamSpec
 from .problem import Problem, WeightedAbs
 from .uncertainty import analyse, central_jacobian, fd_jacobian, other_optima
@@ -55,11 +56,22 @@ class PolishSettings:
     @classmethod
     def from_config(cls, c, fit: str | None = None) -> "PolishSettings":
         """From a profile's ``polish`` mapping; a sub-mapping named ``fit``
-        (e.g. ``valves``) overrides its keys for that fit's polish."""
+        (e.g. ``valves``) overrides its keys for that fit's polish. A key
+        that is neither a setting nor a fit's name (a mistyped ``valve:``)
+        raises UserError naming it."""
+        for k, v in c.items():
+            ok = POLISH_FITS if hasattr(v, "items") else POLISH_KEYS
+            if k not in ok or (hasattr(v, "items") and any(kk not in POLISH_KEYS for kk in v)):
+                raise UserError(f"profile polish: unknown key {k!r} (settings: {', '.join(POLISH_KEYS)}; a fit's "
+                                f"own budget under one of {', '.join(POLISH_FITS)} with the same settings)")
         if fit is not None and fit in c:
             c = {**{k: v for k, v in c.items() if not hasattr(v, "items")}, **c[fit]}
         return cls(int(c["starts"]), int(c["max_nfev"]), float(c.get("step", 1e-3)),
                    float(c.get("min_distance", 0.05)))
+
+
+POLISH_KEYS = ("starts", "max_nfev", "step", "min_distance")
+POLISH_FITS = ("valves", "compliance", "topmount")  # the profile's ga groups of approach 1
 
 
 class Records(Problem):
