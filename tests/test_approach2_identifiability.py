@@ -82,7 +82,10 @@ def test_rule_from_config_is_checked_and_shipped_windows_follow_approach_1():
     for kind in ("shim", "intake"):  # every table-6.1 parameter of approach 1, its window inside approach 1's
         a1 = {i["name"]: i.get("window", i.get("bounds")) for i in bench[kind]}
         a2_ = {i["name"]: i.get("window", i.get("bounds")) for i in cal["parameters"][kind]}
-        assert set(a2_) == set(a1), kind
+        # approach 1 also fits the shim stacks' bleed on the flow bench (valves.yaml; not a table-6.1
+        # parameter); approach 2 leaves it at the drawing's value
+        assert set(a2_) <= set(a1) and set(a1) - set(a2_) <= {"A_bleed"}, kind
+        a1 = {n: a1[n] for n in a2_}
         # approach 2 keeps the 0.5-2 factor windows: on the damper-level record one parameter per valve
         # is determined, and a two-decade window would let the undetermined ones wander (approach2.yaml)
         assert all(a1[n][0] <= a2_[n][0] < a2_[n][1] <= a1[n][1] for n in a1), kind
