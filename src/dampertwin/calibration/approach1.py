@@ -248,9 +248,10 @@ def valve_objective(cal: dict, where: str = "conf/calibration/valves.yaml") -> t
     return w, float(f)
 
 
-def valve_objective_name(cal: dict) -> tuple[str, str]:
-    """(the flow-bench objective's name, its unit) for reports."""
-    w, f = valve_objective(cal)
+def valve_objective_name(cal: dict, where: str = "conf/calibration/valves.yaml") -> tuple[str, str]:
+    """(the flow-bench objective's name, its unit) for reports; a bad
+    objective is a UserError naming ``where`` (:func:`valve_objective`)."""
+    w, f = valve_objective(cal, where)
     if w == "absolute":
         return "eq. 6.1 int |dp_test - dp_sim| dt [Pa*s]", "Pa*s"
     return f"eq. 6.1 relative: int |dp_test - dp_sim| / max(|dp_test|, {f:g} Pa) dt [s]", "s"

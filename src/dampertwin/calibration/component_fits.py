@@ -31,7 +31,7 @@ from ..design import Design
 from ..io import runs
 from . import friction_fit as _ff
 from .approach1 import (SHIM_VALVES, Channel, fit_static_curve, fit_valve, force_chain_nominal, record_input,
-                        specs_from_config, through_sensor, valve_objective, valve_objective_name)
+                        specs_from_config, through_sensor, valve_objective_name)
 from .friction_fit import nrmse
 from .ga import FitError, GASettings
 from .problem import Problem, RecordsAbs
@@ -234,10 +234,9 @@ def fit_valve_records(design: Design, valve: str, frames, items, *, cutoff: floa
     cal = {kind: [{"key": s.key, "bounds": [s.lo, s.hi], "scale": s.scale} for s in specs], "input_cutoff": cutoff,
            **({"objective": dict(objective)} if objective is not None else {})}
     try:
-        valve_objective(cal, where)  # a bad objective names the config it came from
+        obj_name, _ = valve_objective_name(cal, where)  # a bad objective names the config it came from
     except ValueError as e:
         raise FitError(str(e)) from None
-    obj_name, _ = valve_objective_name(cal)
     try:
         res = fit_valve(design, valve, frames[0][1], cal, settings, seed, bench=bench, progress=False,
                         polish_settings=polish_settings, scheduler=scheduler)
