@@ -150,3 +150,8 @@ def test_negative_spool_friction_is_refused(base):
                                                 "valve_friction_current.I_1": 1.0})
     with pytest.raises(ValueError, match="F0 \\+ \\(F1 - F0\\) I / I_1"):
         simulate(d, _sine(F16), "damper", current=1.6)
+    # the same current reached through a step of the driven coil (active_valve_driver reads I_eff, which
+    # runs from the current before the step to the command): refused as well, the message naming 1.6 A
+    d = d.with_overrides({"effects.active_valve_driver": True})
+    with pytest.raises(ValueError, match="at the current 1.6 A"):
+        simulate(d, _sine(F16), "damper", current=0.32, current_before=1.6, current_step_time=0.01)

@@ -265,6 +265,29 @@ def test_aeration_has_memory(base):
     assert V_q == pytest.approx(eq, rel=0.01)
 
 
+def test_aeration_without_air_is_the_model_without_aeration(base):
+    """Limit case: alpha0 = H = 0 (no entrained air, oil that dissolves
+    none) is the model without the effect, to the integrator's tolerance
+    (16 Hz +-5 mm at rtol 1e-8: 3e-5 N; the extra state alone moves the
+    steps, 0.85 N at rtol 1e-4). Fails if the equilibrium ramp is not
+    exactly 0 at full dissolution (a rounding that left eps / 4 of air:
+    ~1 N at any rtol); and the ramp is C1 and exact outside its rounding."""
+    from dampertwin.model.aeration import ALPHA_EPS, ramp
+    ex = Excitation.sine(0.005, 16.0, 0.5)
+    off = simulate(base, ex, "damper", current=1.6, rtol=1e-8)
+    on = simulate(_on(base, "aeration", **{"aeration.alpha0": 0.0, "aeration.H": 0.0}), ex, "damper", current=1.6,
+                  rtol=1e-8)
+    F_off, F_on = off["rod force [N]"], on["rod force [N]"]
+    assert on.ok and off.ok
+    assert np.max(np.abs(F_on - F_off)) < 1e-7 * np.ptp(F_off)
+    e = ALPHA_EPS
+    assert ramp(0.0, e) == 0.0 and ramp(-e, e) == 0.0 and ramp(e, e) == e and ramp(3 * e, e) == 3 * e
+    h = 1e-9 * e
+    for u in (0.0, e):   # C1 at the joints: one-sided slopes agree (0 at 0, 1 at eps)
+        left, right = (ramp(u, e) - ramp(u - h, e)) / h, (ramp(u + h, e) - ramp(u, e)) / h
+        assert left == pytest.approx(right, abs=1e-6)
+
+
 # ------------------------------------------------------------ rod_friction_asymmetric
 def test_asymmetric_friction_is_not_an_offset(base):
     """Damper, 13 Hz +-5 mm: the friction the effect adds while the rod

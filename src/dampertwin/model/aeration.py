@@ -44,7 +44,7 @@ PARAMETERS = (
     Parameter("E_AERATION", "-", "effects.aeration", "switch: free air in the compression chamber"),
 )
 
-ALPHA_EPS = 1e-4  # [-] rounding of the equilibrium's ramp at full dissolution (smooth, C1)
+ALPHA_EPS = 1e-4  # [-] width of the equilibrium ramp's rounding above full dissolution (C1; 0 below)
 
 
 def _initial(q):
@@ -60,12 +60,16 @@ STATES = (State("V_air", "m^3", 1e-6, _initial, "free air in the compression cha
 
 @njit(cache=True, error_model="numpy")
 def ramp(u, eps):
-    """max(u, 0) with a rounded corner of width eps [-] (C1)."""
+    """max(u, 0) with its corner rounded on 0 < u < eps by the cubic
+    (u^2 / eps)(2 - u / eps) (C1: value and slope match at 0 and eps):
+    exactly 0 for u <= 0, so alpha0 = H = 0 is the model without air, and
+    exactly u for u >= eps, so the precharge state alpha0 >= eps is an
+    equilibrium."""
     if u >= eps:
         return u
-    if u <= -eps:
+    if u <= 0.0:
         return 0.0
-    return (u + eps) * (u + eps) / (4.0 * eps)
+    return u * u / eps * (2.0 - u / eps)
 
 
 @njit(cache=True, error_model="numpy")

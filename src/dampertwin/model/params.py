@@ -116,9 +116,12 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
                           ("V_G0", "constants.V_gas0"), ("P0", "oil.P_0")):
             need(p[P[name]] > 0, f"{key} = {p[P[name]]!r}; expected > 0")
     if configuration in ("damper", "module") and p[P.E_VALVE_FRICTION] > 0.5:
-        F_f = p[P.VF_F0] + (p[P.VF_F1] - p[P.VF_F0]) * p[P.CURRENT] / p[P.VF_I1]
-        need(F_f >= 0, f"valve_friction_current: spool friction F0 + (F1 - F0) I / I_1 = {F_f!r} N at the current "
-                       f"{p[P.CURRENT]!r} A; expected >= 0 (a current above I_1 with F1 < F0)")
+        # linear in the current: >= 0 at the command before and after a step (active_valve_driver's
+        # effective current runs between them) is >= 0 at every current the run reads
+        for I in dict.fromkeys((p[P.CURRENT], p[P.CURRENT0])):
+            F_f = p[P.VF_F0] + (p[P.VF_F1] - p[P.VF_F0]) * I / p[P.VF_I1]
+            need(F_f >= 0, f"valve_friction_current: spool friction F0 + (F1 - F0) I / I_1 = {F_f:g} N at the "
+                           f"current {I:g} A; expected >= 0 (a current above I_1 with F1 < F0)")
         need(p[P.VF_A] > 0 and p[P.VF_TAU] > 0 and p[P.VF_DPREG] > 0,
              "valve_friction_current.A_spool, tau_s and dp_reg must be > 0")
     if configuration in ("damper", "module") and p[P.E_AV_LAG] > 0.5:
