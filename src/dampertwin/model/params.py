@@ -86,17 +86,17 @@ def _pack_design(design: Design, eff: dict) -> np.ndarray:
 def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
     """What makes the parameter vector unusable for ``configuration``
     (the design keys named), empty when it is fine."""
-    bad = [f"{d.name} = {p[P[d.name]]!r} is not finite ({d.source if isinstance(d.source, str) else d.description})"
+    bad = [f"{d.name} = {float(p[P[d.name]])!r} is not finite ({d.source if isinstance(d.source, str) else d.description})"
            for d in PARAMETERS if not math.isfinite(p[P[d.name]])]
 
     def need(cond, text):
         if not cond:
             bad.append(text)
 
-    need(p[P.RHO] > 0, f"oil.rho_oil = {p[P.RHO]!r}; expected > 0")
-    need(p[P.NU] > 0, f"oil.nu = {p[P.NU]!r}; expected > 0")
-    need(p[P.K_OIL] > 0, f"oil.K_oil = {p[P.K_OIL]!r}; expected > 0")
-    need(p[P.K_C] > 0, f"constants.k_contact = {p[P.K_C]!r}; expected > 0")
+    need(p[P.RHO] > 0, f"oil.rho_oil = {float(p[P.RHO])!r}; expected > 0")
+    need(p[P.NU] > 0, f"oil.nu = {float(p[P.NU])!r}; expected > 0")
+    need(p[P.K_OIL] > 0, f"oil.K_oil = {float(p[P.K_OIL])!r}; expected > 0")
+    need(p[P.K_C] > 0, f"constants.k_contact = {float(p[P.K_C])!r}; expected > 0")
     valves = VALVE_NAMES if configuration != "valve" else (VALVE_NAMES[int(p[P.BENCH_VALVE])],)
     if configuration in ("valve", "damper", "module"):
         for valve in valves:
@@ -104,17 +104,17 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
             blk = p[o:o + V_SIZE]
             if not np.all(np.isfinite(blk)):
                 bad.append(f"{valve}: non-finite parameter(s)")
-            need(blk[V.M] > 0, f"{valve}.m_v = {blk[V.M]!r}; expected > 0")
-            need(blk[V.DD] > 0, f"{valve}.D_d = {blk[V.DD]!r}; expected > 0")
-            need(blk[V.XMAX] > 0, f"constants.x_max_{valve} = {blk[V.XMAX]!r}; expected > 0")
+            need(blk[V.M] > 0, f"{valve}.m_v = {float(blk[V.M])!r}; expected > 0")
+            need(blk[V.DD] > 0, f"{valve}.D_d = {float(blk[V.DD])!r}; expected > 0")
+            need(blk[V.XMAX] > 0, f"constants.x_max_{valve} = {float(blk[V.XMAX])!r}; expected > 0")
     if configuration == "valve":
-        need(p[P.BENCH_V] > 0, f"bench volume = {p[P.BENCH_V]!r}; expected > 0")
+        need(p[P.BENCH_V] > 0, f"bench volume = {float(p[P.BENCH_V])!r}; expected > 0")
     if configuration in ("damper", "module"):
-        need(p[P.A_R] > 0, f"geometry.D_R must be smaller than geometry.D_PT (annulus area {p[P.A_R]!r})")
-        need(p[P.A_B] > 0, f"geometry.D_PT gives bore area {p[P.A_B]!r}; expected > 0")
+        need(p[P.A_R] > 0, f"geometry.D_R must be smaller than geometry.D_PT (annulus area {float(p[P.A_R])!r})")
+        need(p[P.A_B] > 0, f"geometry.D_PT gives bore area {float(p[P.A_B])!r}; expected > 0")
         for name, key in (("L_R0", "geometry.l_r0"), ("L_C0", "geometry.l_c0"), ("V_B", "geometry.V_b"),
                           ("V_G0", "constants.V_gas0"), ("P0", "oil.P_0")):
-            need(p[P[name]] > 0, f"{key} = {p[P[name]]!r}; expected > 0")
+            need(p[P[name]] > 0, f"{key} = {float(p[P[name]])!r}; expected > 0")
     if configuration in ("damper", "module") and p[P.E_VALVE_FRICTION] > 0.5:
         # linear in the current: >= 0 at the command before and after a step (active_valve_driver's
         # effective current runs between them) is >= 0 at every current the run reads
@@ -125,18 +125,18 @@ def parameter_problems(p: np.ndarray, configuration: str) -> list[str]:
         need(p[P.VF_A] > 0 and p[P.VF_TAU] > 0 and p[P.VF_DPREG] > 0,
              "valve_friction_current.A_spool, tau_s and dp_reg must be > 0")
     if configuration in ("damper", "module") and p[P.E_AV_LAG] > 0.5:
-        need(p[P.AV_TAU] > 0, f"active_valve_lag.tau = {p[P.AV_TAU]!r}; expected > 0")
+        need(p[P.AV_TAU] > 0, f"active_valve_lag.tau = {float(p[P.AV_TAU])!r}; expected > 0")
     if configuration in ("damper", "module") and p[P.E_FIXTURE] > 0.5:
         need(p[P.FX_FN] > 0 and p[P.FX_ZETA] > 0,
-             f"fixture_resonance.f_n = {p[P.FX_FN]!r}, zeta = {p[P.FX_ZETA]!r}; expected both > 0")
+             f"fixture_resonance.f_n = {float(p[P.FX_FN])!r}, zeta = {float(p[P.FX_ZETA])!r}; expected both > 0")
     if configuration in ("damper", "module") and p[P.E_AV_DRIVER] > 0.5:
         need(p[P.DRV_TAU] > 0 and p[P.DRV_RATE] > 0 and p[P.DRV_TAU_E] > 0,
              "active_valve_driver.tau_d, rate_max and tau_e must be > 0")
     if configuration in ("damper", "module") and p[P.E_GAS_RELEASE] > 0.5:
         need(p[P.GR_TREL] > 0 and p[P.GR_TDIS] > 0, "gas_release.tau_rel and tau_dis must be > 0")
     if configuration == "module":
-        need(p[P.M_ROD] > 0, f"geometry.M_rod = {p[P.M_ROD]!r}; expected > 0")
-        need(p[P.TM_FLD0] > 0, f"top_mount.F_LD[0] = {p[P.TM_FLD0]!r}; expected > 0 (static stiffness)")
+        need(p[P.M_ROD] > 0, f"geometry.M_rod = {float(p[P.M_ROD])!r}; expected > 0")
+        need(p[P.TM_FLD0] > 0, f"top_mount.F_LD[0] = {float(p[P.TM_FLD0])!r}; expected > 0 (static stiffness)")
     return bad
 
 
