@@ -67,14 +67,17 @@ def top_mount_rates(Xdot, x, y, w, R, k0, k1, k2, c0, c1, c2):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, coef, o, dynamics):
-    """Bushing force eq. 4.35-4.37, F = K y + C w' + F_LD(X) [N] (F_LD's
-    coefficients at coef[o:o + N_FLD]); with ``dynamics`` false only the static curve."""
+def top_mount_force(X, y, wd, p0, p1, p2, q0, q1, q2, k0, c0, y_unit, w_unit, coef, o, dynamics, contact):
+    """Bushing force eq. 4.35-4.37, F = contact (K y + C w') + F_LD(X) [N]
+    (F_LD's coefficients at coef[o:o + N_FLD]); with ``dynamics`` false only
+    the static curve. ``contact`` [-] is 1 but across a free play
+    (top_mount_backlash), where the rubber, out of contact, passes on none
+    of its internal states' force."""
     F = static_force(X, coef, o, N_FLD)
     if dynamics:
         K = k0 * (p0 + p1 * power(abs(y / y_unit), p2))  # eq. 4.35
         C = c0 * (q0 + q1 * power(abs(wd / w_unit), q2))  # eq. 4.36
-        F += K * y + C * wd  # eq. 4.37
+        F += contact * (K * y + C * wd)  # eq. 4.37
     return F
 
 
@@ -84,7 +87,7 @@ def mount(y, o, p, X, Xdot, dy):
     X [m] and rate Xdot [m/s]; writes its state rates into dy[o + TM.*]
     (frozen when the dynamics are switched off). With top_mount_backlash
     the rubber sees the dead-zone deflection."""
-    X, Xdot = backlash(p, X, Xdot)
+    X, Xdot, contact = backlash(p, X, Xdot)
     x = y[o + TM.tm_x]
     yy = y[o + TM.tm_y]
     w = y[o + TM.tm_w]
@@ -93,7 +96,7 @@ def mount(y, o, p, X, Xdot, dy):
     dyn = p[_L.P.E_TM_DYNAMICS] > 0.5
     F = top_mount_force(X, yy, wd, p[_L.P.TM_P0], p[_L.P.TM_P1], p[_L.P.TM_P2], p[_L.P.TM_Q0], p[_L.P.TM_Q1],
                         p[_L.P.TM_Q2], p[_L.P.TM_K0], p[_L.P.TM_C0], p[_L.P.TM_YU], p[_L.P.TM_WU],
-                        p, _L.P.TM_FLD0, dyn)
+                        p, _L.P.TM_FLD0, dyn, contact)
     dy[o + TM.tm_x] = xd if dyn else 0.0
     dy[o + TM.tm_y] = yd if dyn else 0.0
     dy[o + TM.tm_w] = wd if dyn else 0.0
