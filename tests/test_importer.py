@@ -92,7 +92,7 @@ def test_import_of_a_json_matrix_names_its_columns(tmp_path):
 
 def test_import_cli_rejects_a_record_failing_the_schema(tmp_path, capsys):
     src = tmp_path / "short.csv"
-    pd.DataFrame({"t": [0.0, 1.0, 2.0], "F": [1.0, 2.0, 3.0]}).to_csv(src, index=False)
+    pd.DataFrame({"t": np.arange(200.0), "F": 1.0 + np.arange(200.0)}).to_csv(src, index=False)  # 1 kHz, 0.2 s
     mp = tmp_path / "m.yaml"
     mp.write_text("columns:\n  t: {quantity: time, unit: ms}\n  F: {quantity: force, unit: daN}\n")
     out = tmp_path / "monosine" / "x.parquet"
@@ -100,4 +100,7 @@ def test_import_cli_rejects_a_record_failing_the_schema(tmp_path, capsys):
     assert "missing column 'displacement [m]'" in capsys.readouterr().err and not out.exists()
     ok = tmp_path / "misc" / "x.parquet"
     assert main(["import", "--map", str(mp), str(src), "--out", str(ok)]) == 0
-    assert read_frame(ok)[0]["force [N]"].tolist() == [10.0, 20.0, 30.0]
+    assert read_frame(ok)[0]["force [N]"].tolist()[:3] == [10.0, 20.0, 30.0]
+    pd.DataFrame({"t": [0.0, 1.0, 2.0], "F": [1.0, 2.0, 3.0]}).to_csv(src, index=False)  # three samples: no record
+    assert main(["import", "--map", str(mp), str(src), "--out", str(tmp_path / "misc" / "y.parquet")]) == 2
+    assert "3 samples over 0.002 s" in capsys.readouterr().err

@@ -82,6 +82,11 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         print(f"dampertwin: error: {one_line(e)}", file=sys.stderr)
         return USER_ERROR_EXIT
+    except KeyboardInterrupt:  # Ctrl-C: the outputs' cleanups have run while the exception unwound
+        if debug:
+            traceback.print_exc()
+        print("dampertwin: interrupted", file=sys.stderr)
+        return 130
 
 
 def build_parser() -> argparse.ArgumentParser:

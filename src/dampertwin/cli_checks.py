@@ -97,10 +97,16 @@ def check_args(args) -> None:
 
             if not isinstance(yaml_load_file(args.bounds), dict):
                 raise ArgumentError(f"--bounds {args.bounds}: expected a mapping with a 'parameters:' list")
+    if cmd == "plot":  # its outputs are not locked, but checked like every other command's
+        check_out_dir(args.out, "--out")
+        if args.data is not None and not Path(args.data).is_dir():
+            raise ArgumentError(f"--measured {args.data}: not a folder (expected a measured data folder)")
     if cmd not in NO_LOCK and getattr(args, "out", None) is not None:
         check_out_dir(args.out, "--out", file=cmd in FILE_OUTPUT)
         if cmd in FILE_OUTPUT and Path(args.out).suffix != ".parquet":
             raise ArgumentError(f"--out {args.out}: expected a .parquet file")
+        if cmd == "import" and Path(args.out).resolve() == Path(args.src).resolve():
+            raise ArgumentError(f"--out {args.out}: is the source file; choose another path (the source is kept)")
 
 
 @contextlib.contextmanager

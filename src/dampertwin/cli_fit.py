@@ -5,6 +5,7 @@ calibration core."""
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -24,12 +25,80 @@ def parse_param_args(items: list[str]) -> list[dict]:
             scale = parts[2] if len(parts) > 2 else "lin"
         except (ValueError, IndexError):
             raise FitError(f"--param {s!r}: expected name=lo:hi or name=lo:hi:log") from None
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise FitError(f"--param {s!r}: the bounds must be finite numbers")
         key = "key" if "." in name else "name"
         out.append({key: name.strip(), "bounds": [lo, hi], "scale": scale})
     return out
 
 
-def load_search_config(path: str | os.PathLike | None) -> dict:
+# what a --bounds file may say, per fit (docs/how-to/fit-submodel.md); anything else is a typo, refused
+BOUNDS_KEYS = {
+    "valve": {"parameters", "valve", "objective", "bench", "input_cutoff", "ga", "polish"},
+    "compliance": {"parameters", "input_cutoff", "force_bandwidth", "ga", "polish"},
+    "topmount": {"parameters", "input_cutoff", "force_bandwidth", "ga", "polish", "static", "runs", "dynamic_run",
+                 "determined"},
+    "friction": {"parameters", "fixed"},
+    "damper": {"parameters", "input_cutoff", "ga", "polish"},
+}
+BENCH_KEYS = {"bench_volume", "bench_back_pressure"}
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def check_search_config(doc: dict, where: str, submodel: str) -> None:
+    """The --bounds file's keys and the types a fit cannot check before its
+    first simulation: FitError naming the file and the key."""
+    from .calibration.approach1 import ITEM_KEYS
+    from .calibration.friction_fit import FRICTION_KEYS
+
+    allowed = BOUNDS_KEYS.get(submodel, set())
+    extra = sorted(map(str, set(doc) - allowed))
+    if extra:
+        raise FitError(f"{where}: unknown key(s) {', '.join(extra)} for a {submodel} fit; expected "
+                       f"{', '.join(sorted(allowed))}")
+    items = doc.get("parameters")
+    if "parameters" in doc:
+        if not isinstance(items, list) or not items:
+            raise FitError(f"{where}: parameters: expected a non-empty list of items (name or key, bounds or "
+                           f"window, scale), got {items!r}")
+        for i, it in enumerate(items):
+            if not isinstance(it, dict) or set(it) - ITEM_KEYS:
+                raise FitError(f"{where}: parameters item {i} ({it!r}): expected a mapping of "
+                               f"{', '.join(sorted(ITEM_KEYS))}")
+        names = [it.get("key", it.get("name")) for it in items]
+        dup = sorted({str(n) for n in names if names.count(n) > 1})
+        if dup:
+            raise FitError(f"{where}: parameters: {', '.join(dup)} listed more than once")
+    fixed = doc.get("fixed")
+    if "fixed" in doc:
+        if not isinstance(fixed, dict):
+            raise FitError(f"{where}: fixed: expected a mapping name: value, got {fixed!r}")
+        for k, v in fixed.items():
+            if k not in FRICTION_KEYS:
+                raise FitError(f"{where}: fixed: unknown friction parameter {k!r}; expected one of "
+                               f"{', '.join(FRICTION_KEYS)}")
+            if not _number(v):
+                raise FitError(f"{where}: fixed: {k} = {v!r}; expected a finite number")
+        searched = {str(n).split(".")[-1] for n in [it.get("key", it.get("name")) for it in items or []]}
+        both = sorted(searched & set(fixed))
+        if both:
+            raise FitError(f"{where}: {', '.join(both)} both fixed and searched; give each in one place")
+    for key in ("input_cutoff", "force_bandwidth"):
+        if key in doc and not (_number(doc[key]) and doc[key] > 0):
+            raise FitError(f"{where}: {key}: expected a positive frequency in Hz, got {doc[key]!r}")
+    if "bench" in doc:
+        b = doc["bench"]
+        if not isinstance(b, dict) or set(b) - BENCH_KEYS or not all(_number(v) for v in b.values()) \
+                or not b.get("bench_volume", 1.0) > 0 or not b.get("bench_back_pressure", 0.0) >= 0:
+            raise FitError(f"{where}: bench: expected bench_volume [m^3] > 0 and bench_back_pressure [Pa] >= 0, "
+                           f"got {b!r}")
+
+
+def load_search_config(path: str | os.PathLike | None, submodel: str | None = None) -> dict:
+    """The --bounds file (a mapping), checked for a ``submodel`` fit when given."""
     if path is None:
         return {}
     p = Path(path)
@@ -38,6 +107,8 @@ def load_search_config(path: str | os.PathLike | None) -> dict:
     doc = yaml_load(p.read_text())
     if not isinstance(doc, dict):
         raise FitError(f"{p}: expected a mapping with a 'parameters:' list")
+    if submodel is not None:
+        check_search_config(doc, str(p), submodel)
     return doc
 
 
@@ -68,7 +139,7 @@ def _profile(name: str) -> dict:
 def run_fit_cli(args) -> tuple[Path, list[str]]:
     """``dampertwin fit`` entry: returns the written fit.json path and the
     fit's flags (parameters on a bound, unsupported effects)."""
-    cfg = load_search_config(args.bounds)
+    cfg = load_search_config(args.bounds, args.submodel)
     if args.bounds:
         cfg["_where"] = str(args.bounds)
     if getattr(args, "profile", None):

@@ -54,12 +54,20 @@ def _read_all(paths, protocol=None, valve=None) -> list[pd.DataFrame]:
     return [read_fit_record(p, protocol, valve=valve) for p in paths]
 
 
-def _with_shas(result: dict, out) -> dict:
-    """Each file's SHA-256 in ``result['files']``; ``out/fit.json`` written when ``out`` is given."""
+def _with_shas(result: dict, out, plots=None) -> dict:
+    """Each file's SHA-256 in ``result['files']``; when ``out`` is given the
+    plots (``plots(out)``) and then ``out/fit.json``, last: an earlier
+    fit.json is removed first, so a run killed while plotting leaves no
+    fit.json beside plots it does not describe."""
     for p, entry in result["files"].items():
         entry["sha256"] = _sha(Path(p))
     if out is not None:
-        _write_json(Path(out) / "fit.json", result)
+        out = Path(out)
+        (out / "fit.json").unlink(missing_ok=True)
+        out.mkdir(parents=True, exist_ok=True)
+        if plots is not None:
+            plots(out)
+        _write_json(out / "fit.json", result)
     return result
 
 
@@ -141,11 +149,9 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
         polish_settings=PolishSettings.from_config(cfg.get("polish") or cf.DEFAULT_POLISH), seed=seed,
         where=cfg.get("_where", "valve search space"), scheduler=scheduler,
         objective=cfg.get("objective", _study_doc("valves.yaml").get("objective")))
-    _with_shas(result, out)
-    if out is not None:
-        series_plots(Path(out), problem, sims, "dp [Pa]", "valve",
+    _with_shas(result, out, lambda o: series_plots(o, problem, sims, "dp [Pa]", "valve",
                      x_of=lambda t, ex, extra: (np.interp(t, ex.t0 + ex.dt * np.arange(len(ex.value)), ex.value)
-                                                * 60000.0, "flow [l/min]"))
+                                                * 60000.0, "flow [l/min]")))
     return result
 
 
@@ -160,9 +166,7 @@ def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, conf
         d, list(zip(map(str, [data, *predict]), frames)), items, cutoff=float(cfg.get("input_cutoff", 1000.0)),
         force_bandwidth=_force_bandwidth(cfg, "compliance.yaml"), settings=cf.ga_settings(cfg, population, generations),
         seed=seed, current=current, where=cfg.get("_where", "compliance search space"), scheduler=scheduler)
-    _with_shas(result, out)
-    if out is not None:
-        series_plots(Path(out), problem, sims, "rod force [N]", "compliance")
+    _with_shas(result, out, lambda o: series_plots(o, problem, sims, "rod force [N]", "compliance"))
     return result
 
 
@@ -194,9 +198,7 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
         seed=seed, static=cfg.get("static"), want=cfg.get("runs") or ([cfg["dynamic_run"]] if cfg.get("dynamic_run")
                                                                        else None),
         where_k=where, where=cfg.get("_where", "top-mount search space"), scheduler=scheduler)
-    _with_shas(result, out)
-    if out is not None:
-        series_plots(Path(out), problem, sims, "top mount force [N]", "topmount")
+    _with_shas(result, out, lambda o: series_plots(o, problem, sims, "top mount force [N]", "topmount"))
     return result
 
 
@@ -221,10 +223,8 @@ def fit_friction(data, *, design: Design | str | os.PathLike | None = None, boun
     base.update({k: float(v) for k, v in (fixed or {}).items()})
     result, recs, sims = cf.fit_friction_records([str(p) for p in paths], frames, base, items=bounds,
                                                  effects=effects, holdout=holdout_cycles, seed=seed, starts=starts,
-                                                 velocity=velocity)
-    _with_shas(result, out)
-    if out is not None:
-        friction_plots(Path(out), paths, recs, sims, result)
+                                                 velocity=velocity, fixed=tuple(fixed or ()))
+    _with_shas(result, out, lambda o: friction_plots(o, paths, recs, sims, result))
     return result
 
 
@@ -249,9 +249,7 @@ def fit_damper(data, *, design=None, bounds=None, predict=(), out=None, config=N
         settings=cf.ga_settings(cfg, population, generations), seed=seed,
         cutoff=float(cfg.get("input_cutoff", 1000.0)), where=cfg.get("_where", "damper search space"),
         scheduler=scheduler)
-    _with_shas(result, out)
-    if out is not None:
-        series_plots(Path(out), problem, sims, "rod force [N]", "damper")
+    _with_shas(result, out, lambda o: series_plots(o, problem, sims, "rod force [N]", "damper"))
     return result
 
 

@@ -4,12 +4,20 @@ force-velocity loops; GA fits: one panel per record)."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 
 from .calibration import friction_fit as _ff
 from .calibration.friction_fit import nrmse
+
+
+def _save(fig, path: Path) -> None:
+    """The PNG written beside itself and renamed: a killed run leaves the old file or the new one."""
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.png")
+    fig.savefig(tmp, dpi=100)
+    os.replace(tmp, path)
 
 
 def friction_plots(out: Path, paths, recs, sims, result) -> None:
@@ -51,7 +59,7 @@ def friction_plots(out: Path, paths, recs, sims, result) -> None:
             if i == 0 else ""
         fig.suptitle(f"friction fit: {path.name} ({'fitted' if i == 0 else 'predicted'}); {result['model']}"
                      + (f"\nFLAG: {flags}" if flags else ""), fontsize=9)
-        fig.savefig(out / f"friction_{i}_{path.stem}.png", dpi=100)
+        _save(fig, out / f"friction_{i}_{path.stem}.png")
         plt.close(fig)
 
 
@@ -77,7 +85,7 @@ def series_plots(out: Path, problem, sims, ylabel: str, name: str, x_of=None) ->
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
         fig.suptitle(f"{name} fit: {Path(path).name} ({'fitted' if fi == 0 else 'predicted'})")
-        fig.savefig(out / f"{name}_{fi}_{Path(path).stem}.png", dpi=100)
+        _save(fig, out / f"{name}_{fi}_{Path(path).stem}.png")
         plt.close(fig)
 
 

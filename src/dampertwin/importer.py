@@ -191,8 +191,11 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
             continue
         raw = pd.to_numeric(df[name], errors="coerce")
         if raw.isna().any():
-            bad = df[name][raw.isna()].iloc[0]
-            raise MappingError(f"{label}: {int(raw.isna().sum())} non-numeric values (first {bad!r})")
+            i = int(np.argmax(raw.isna().to_numpy()))
+            bad = df[name].iloc[i]
+            bad = "an empty cell" if pd.isna(bad) or str(bad).strip() == "" else repr(str(bad))
+            raise MappingError(f"{label}: {int(raw.isna().sum())} non-numeric values (the first, data row {i + 1}: "
+                               f"{bad}; a decimal comma needs csv: {{decimal: ','}})")
         x, si = to_si(raw.to_numpy(), spec["unit"], where=label, gauge=bool(spec.get("gauge", False)))
         if q in io.UNITS and io.UNITS[q] != si:
             raise MappingError(f"{label}: unit {spec['unit']!r} is a {si} unit but {q!r} needs {io.UNITS[q]!r}")
@@ -325,6 +328,28 @@ def _setting_meta(mapping: dict, where: str) -> dict:
     return {"setting": dict(s)}
 
 
+MAPPING_KEYS = {"columns", "constants", "run", "time_offset", "protocol", "csv", "json", "synthetic", "setting"}
+COLUMN_KEYS = {"quantity", "unit", "scale", "gauge", "format"}
+
+
+def _check_mapping_keys(mapping: dict, where: str) -> None:
+    """A mapping's keys and its columns' keys are the documented ones (a typo would drop a setting or a
+    scale without a word); time_offset and gauge are true / false."""
+    extra = sorted(map(str, set(mapping) - MAPPING_KEYS))
+    if extra:
+        raise MappingError(f"{where}: unknown key(s) {', '.join(extra)}; expected {', '.join(sorted(MAPPING_KEYS))}")
+    if not isinstance(mapping.get("time_offset", False), bool):
+        raise MappingError(f"{where}: time_offset: {mapping['time_offset']!r}; expected true or false")
+    for name, spec in (mapping.get("columns") or {}).items() if isinstance(mapping.get("columns"), dict) else ():
+        if isinstance(spec, dict):
+            extra = sorted(map(str, set(spec) - COLUMN_KEYS))
+            if extra:
+                raise MappingError(f"{where}: column {name!r}: unknown key(s) {', '.join(extra)}; expected "
+                                   f"{', '.join(sorted(COLUMN_KEYS))}")
+            if not isinstance(spec.get("gauge", False), bool):
+                raise MappingError(f"{where}: column {name!r}: gauge: {spec['gauge']!r}; expected true or false")
+
+
 def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike, out: str | os.PathLike, *,
                        protocol: str | None = None) -> Path:
     """Convert ``src`` (CSV / Parquet / JSON matrix) with ``mapping`` (dict or YAML path) and
@@ -349,6 +374,7 @@ def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike
             raise MappingError(f"{map_where}: expected a mapping with a 'columns:' section")
     if out.suffix != ".parquet":
         raise MappingError(f"{out}: output must be a .parquet file")
+    _check_mapping_keys(mapping, map_where)
     for key in ("protocol", "csv", "json"):
         if mapping.get(key) is not None and not isinstance(mapping[key], str if key == "protocol" else dict):
             raise MappingError(f"{map_where}: {key}: {mapping[key]!r}; expected "

@@ -191,6 +191,9 @@ def _nominal_path(conf: Path, sample: dict) -> Path:
     return conf / "lab" / "nominal.yaml"
 
 
+INCOMPLETE = ".incomplete"  # the marker file of a lab folder being written (see run_lab)
+
+
 def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None, seed: int = 0,
             progress: bool = True, conf: str | Path | None = None, only: list[tuple[str, str]] | None = None,
             workers: int | None = None) -> list[Path]:
@@ -221,6 +224,10 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
             raise LabError(f"--tests: unknown test(s) {', '.join(unknown)}; expected some of {', '.join(known)}")
         items = [it for it in items if it[0] in tests]
     out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    marker = out / INCOMPLETE  # removed once every record is written: a killed run leaves it (readers refuse)
+    marker.write_text(f"a dampertwin lab run of {sample} is writing this folder, or was stopped before it "
+                      f"finished: its records may be partial or mixed with an earlier run's; run it again\n")
     # longest first (module random tests), so the workers finish together
     order = sorted(range(len(items)), key=lambda i: items[i][0] not in ("random", "verification", "training"))
     workers = min(len(items), workers or os.cpu_count() or 1)
@@ -238,6 +245,7 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
                 paths[futs[f]] = f.result()
                 bar.update()
     bar.close()
+    marker.unlink()
     return [Path(paths[i]) for i in range(len(items))]
 
 

@@ -54,6 +54,9 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
         label = f"{where}: item {i} ({it!r})"
         if not isinstance(it, dict) or ("name" not in it and "key" not in it):
             raise UserError(f"{label}: needs 'name' (within the group) or 'key' (group.name)")
+        if set(it) - ITEM_KEYS:
+            raise UserError(f"{label}: unknown key(s) {', '.join(sorted(map(str, set(it) - ITEM_KEYS)))}; "
+                            f"expected {', '.join(sorted(ITEM_KEYS))}")
         if ("bounds" in it) == ("window" in it):
             raise UserError(f"{label}: give exactly one of 'bounds: [lo, hi]' or 'window: [f_lo, f_hi]'")
         if it.get("scale", "lin") not in ("lin", "log"):
@@ -70,11 +73,14 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
             except KeyError as e:
                 raise ValueError(f"{label}: unknown design parameter {key!r}: {e}") from None
         rng = it.get("bounds", it.get("window"))
-        if not (isinstance(rng, list) and len(rng) == 2 and all(isinstance(x, (int, float)) for x in rng)):
-            raise UserError(f"{label}: bounds / window must be two numbers")
+        if not (isinstance(rng, list) and len(rng) == 2
+                and all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in rng)):
+            raise UserError(f"{label}: bounds / window must be two finite numbers")
         if "bounds" in it:
             lo, hi = map(float, rng)
         else:
+            if not rng[0] < rng[1]:
+                raise UserError(f"{label}: a window is two factors on the nominal value, f_lo < f_hi")
             a, b = (float(f) * value for f in rng)
             lo, hi = min(a, b), max(a, b)
             if p is not None and p.bounds is not None:
@@ -89,6 +95,7 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
 
 
 NUISANCE = "sensor."  # fitted quantities of the measurement chain, not of the design
+ITEM_KEYS = {"name", "key", "bounds", "window", "scale"}  # what a search-space item may say
 
 
 def trapezoid_weights(t: np.ndarray) -> np.ndarray:

@@ -244,10 +244,12 @@ def _flag(h: dict) -> str:
 
 
 def fit_friction_record(rec: dict, base: dict, *, items: list | None = None, effects=(), holdout: int | None = None,
-                        predicted=(), seed: int = 0, starts: int = 8, where: str = "friction search space") -> dict:
+                        predicted=(), seed: int = 0, starts: int = 8, where: str = "friction search space",
+                        fixed=()) -> dict:
     """Fit the friction law to one record ``rec`` (arrays ``t`` [s], ``v``
     [m/s], ``F`` [N], optional ``x`` [m]); ``predicted``: further records
-    only simulated. ``base``: values of every parameter not searched.
+    only simulated. ``base``: values of every parameter not searched;
+    ``fixed``: names the default search (from the record) leaves out, held at ``base``.
     Returns the report (``parameters``, ``bound_hits``, ``flags``, NRMSE of
     fitted / held-out cycles, ``effects`` support, ``uncertainty``) and,
     under ``_sims``, the simulated forces for plots."""
@@ -261,7 +263,8 @@ def fit_friction_record(rec: dict, base: dict, *, items: list | None = None, eff
     held = ~fitted
     dt = float(np.mean(np.diff(t)))
     auto = data_bounds(F[fitted], None if x is None else x[fitted], v[fitted], dt, effects)
-    items = list(items) if items else [i for i in auto if i["name"] not in EFFECT_PARAMS.values()]
+    items = list(items) if items else [i for i in auto if i["name"] not in EFFECT_PARAMS.values()
+                                       and i["name"] not in fixed]
     names_given = {(i.get("name") or i.get("key", "")).split(".")[-1] for i in items}
     items += [i for i in auto if i["name"] in [EFFECT_PARAMS[e] for e in effects] and i["name"] not in names_given]
     specs, origin = specs_of(items, where)

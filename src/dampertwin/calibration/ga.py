@@ -100,6 +100,10 @@ class ParamSpec:
         return float(np.clip((v - self.lo) / (self.hi - self.lo), 0, 1))
 
 
+GA_KEYS = {"population", "reproduction_ratio", "generations", "mutation_probability", "elitism", "max_wall_s",
+           "stall_generations", "stall_tol"}  # what a GA settings mapping may say (GASettings' fields)
+
+
 @dataclass(frozen=True)
 class GASettings:
     """Thesis tables 6.2 / 6.3: population, reproduction ratio [%],
@@ -118,6 +122,15 @@ class GASettings:
 
     @classmethod
     def from_config(cls, c) -> "GASettings":
+        unknown = set(c) - GA_KEYS
+        if unknown:
+            raise UserError(f"GA settings {dict(c)}: unknown key(s) {', '.join(sorted(map(str, unknown)))}; expected "
+                            f"{', '.join(sorted(GA_KEYS))}")
+        for key in ("population", "generations"):
+            v = c.get(key)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (2 if key == "population" else 1):
+                raise UserError(f"GA settings {dict(c)}: {key} {v!r}; expected an integer >= "
+                                f"{2 if key == 'population' else 1}")
         wall = c.get("max_wall_s")
         if wall is None or isinstance(wall, bool) or not isinstance(wall, (int, float)) or not wall > 0:
             raise UserError(f"GA settings {dict(c)}: max_wall_s {wall!r}; expected a positive wall-time cap [s] "

@@ -12,6 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from .schema import MAP_COLUMNS
+
+# the largest value of each map column (SI) in a damper valve's map: a current of at most a few A, a map over
+# 1-1000 bar, a largest flow of 0.06-6000 l/min; outside, a unit was mixed up (mA, bar, l/min)
+MAP_RANGE = {"current": (0.01, 10.0), "dp": (1.0e5, 1.0e8), "flow": (1.0e-6, 0.1)}
 from .yaml_io import ConfigTextError, read_config_text
 
 
@@ -123,6 +127,14 @@ def _read_map(path: Path, label: str, errors: list[str]) -> PQMap | None:
         return None
     if np.any(flow[:, 0] != 0.0):
         errors.append(f"{label}: P/Q map {str(path)!r}: flow at dp = 0 must be 0")
+    for col, top, (lo, hi), hint in (("current [A]", currents[-1], MAP_RANGE["current"], "values in mA?"),
+                                     ("dp [Pa]", dps[-1], MAP_RANGE["dp"], "values in bar (or MPa)?"),
+                                     ("flow [m^3/s]", float(np.max(flow)), MAP_RANGE["flow"], "values in l/min?")):
+        if not lo <= top <= hi:
+            errors.append(f"{label}: P/Q map {str(path)!r}: column {col!r} reaches {top:.4g}, outside the "
+                          f"{lo:g} .. {hi:g} of a passenger-car damper valve's map: {hint}")
+    if len(errors) > n0:
+        return None
     if np.any(np.diff(flow, axis=1) <= 0):
         i = int(np.argwhere(np.diff(flow, axis=1) <= 0)[0, 0])
         errors.append(f"{label}: P/Q map {str(path)!r} is not monotone: flow must rise with dp (current {currents[i]} A)")

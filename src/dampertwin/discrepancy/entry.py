@@ -68,6 +68,9 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
     Returns (units, variants by case, skipped notes)."""
     if not measured.is_dir():
         raise DiscrepancyError(f"{measured}: measured folder not found (expected DIR/<test>/<case>.parquet)")
+    if (measured / ".incomplete").is_file():  # lab.INCOMPLETE: a lab run that did not finish
+        raise DiscrepancyError(f"{measured}: written by a lab run that did not finish (its {measured / '.incomplete'} "
+                               f"marker); its records may be partial: run the lab again")
     present = {p.name: sorted(p.glob("*.parquet")) for p in sorted(measured.iterdir()) if p.is_dir()}
     present = {k: v for k, v in present.items() if v}
     usable = {k: v for k, v in present.items() if k in CONFIGURATIONS}
@@ -212,7 +215,7 @@ def check_out(out: Path, measured: Path, design: Path) -> None:
     working directory, the measured folder or the design file, and an
     existing OUT may hold only what the workflow writes
     (:func:`is_earlier_output`): anything else is refused, never deleted."""
-    check_out_dir(out)  # a folder or nothing yet, under a writable folder
+    check_out_dir(out, sibling=True)  # a folder or nothing yet, under a writable folder (the temporary sibling)
     o = out.resolve()
     parent = o.parent
     while not parent.exists():

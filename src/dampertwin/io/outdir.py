@@ -33,9 +33,14 @@ def _existing_parent(p: Path) -> Path:
     return q
 
 
-def check_out_dir(out: str | os.PathLike, option: str = "--out", *, file: bool = False) -> Path:
+def check_out_dir(out: str | os.PathLike, option: str = "--out", *, file: bool = False,
+                  sibling: bool | None = None) -> Path:
     """``out`` may be written: a folder (or, ``file=True``, a file) or not yet
-    there, below a writable folder. OutputError naming ``option`` otherwise."""
+    there, below a writable folder. OutputError naming ``option`` otherwise.
+    An existing writable folder needs no writable parent unless ``sibling``
+    (a command that replaces OUT through a temporary folder beside it;
+    default: a file, which is written beside itself and renamed)."""
+    sibling = file if sibling is None else sibling
     o = Path(out)
     if str(out).strip() == "":
         raise OutputError(f"{option}: empty path; expected a {'file' if file else 'folder'}")
@@ -47,7 +52,7 @@ def check_out_dir(out: str | os.PathLike, option: str = "--out", *, file: bool =
     parent = _existing_parent(o.absolute())
     if not parent.is_dir():
         raise OutputError(f"{option} {out}: {parent} is a file, not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
+    if (sibling or not o.exists()) and not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"{option} {out}: folder {parent} is not writable")
     if o.exists() and not os.access(o, os.W_OK | (0 if file else os.X_OK)):
         raise OutputError(f"{option} {out}: not writable")

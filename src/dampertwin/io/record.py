@@ -25,6 +25,7 @@ within ``GENERIC_RATE``, dead channels, physical ranges, dissipation.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -41,6 +42,10 @@ PEAK_RANGE = {"displacement": (None, 1.0), "force": (1.0, 1.0e6), "dp": (1.0e4, 
 # a typical peak of each quantity (SI), only to name the likely unit of a value outside PEAK_RANGE
 TYPICAL = {"displacement": 5e-3, "force": 1e3, "dp": 2e6, "flow": 1e-3, "rod acceleration": 100.0, "velocity": 0.5,
            "current": 1.0}
+# samples and duration [s] a record read without a protocol needs at least (a few cycles of any bench excitation)
+GENERIC_MIN = (100, 0.1)
+VELOCITY_MIN_CORR = 0.9  # a velocity column's integral against the displacement (both detrended), at least
+VELOCITY_MAX_GAIN = 1.5  # ... and its scale within this factor of 1 (a unit mix-up is a factor of 10 or more)
 GENERIC_RATE = (100.0, 2.0e6)  # [Hz] sampling rate of a record read without a protocol (bench rigs record at >= 200 Hz)
 SIGN_TOL = 0.05  # a record generating more than this fraction of its |F v| energy has a flipped sign
 # common non-SI units a number may have been written in, per SI unit: (unit, factor to SI)
@@ -148,6 +153,9 @@ def check_record(df: pd.DataFrame, meta: dict, where: str, test: str | None = No
                   for q in ("displacement", "flow") if any(q in t for t in spec.targets.values())}
         cfg = spec.configurations.get(name) or next(iter(spec.configurations.values()))
         errors += _magnitude_errors(g, label, tg, spec.path)
+        errors += _current_errors(g, label, name)
+        if not errors:
+            errors += _velocity_errors(g, label)
         if not errors:
             errors += _sign_errors(g, label, cfg)
     if errors:
@@ -263,6 +271,55 @@ def _sign_errors(g: pd.DataFrame, label: str, configuration: str) -> list[str]:
     return []
 
 
+CURRENT_TOL = 0.05  # [A] a record's mean current against the one its run label names (I1.6: 1.6 A)
+
+
+def _current_errors(g: pd.DataFrame, label: str, run) -> list[str]:
+    """The active valve's current is >= 0 and, where the run label names it
+    (``..._I1.6``), within CURRENT_TOL of it."""
+    if "current [A]" not in g:
+        return []
+    i = g["current [A]"].to_numpy(float)
+    if np.min(i) < 0:
+        return [f"{label}: column 'current [A]' is negative ({np.min(i):.4g} A); expected the valve's current >= 0 "
+                f"(a sign or scale in the mapping?)"]
+    m = re.search(r"(?:^|_)I(\d+(?:\.\d+)?)$", str(run)) if run is not None else None
+    if m and abs(float(np.mean(i)) - float(m.group(1))) > CURRENT_TOL:
+        return [f"{label}: column 'current [A]' averages {np.mean(i):.4g} A where the run label names "
+                f"{m.group(1)} A: {mixup(float(np.mean(i)) / float(m.group(1)), 'A')}"]
+    return []
+
+
+def _velocity_errors(g: pd.DataFrame, label: str) -> list[str]:
+    """A velocity column beside a displacement column must be its rate: the
+    integrated velocity (a constant offset and a linear drift removed from
+    both) against the displacement, correlation >= VELOCITY_MIN_CORR and a
+    gain within VELOCITY_MAX_GAIN of 1 (integration, not differentiation:
+    the displacement's quantisation noise stays small)."""
+    if "velocity [m/s]" not in g or "displacement [m]" not in g:
+        return []
+    t = g["time [s]"].to_numpy(float)
+    v, x = g["velocity [m/s]"].to_numpy(float), g["displacement [m]"].to_numpy(float)
+    xv = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    A = np.column_stack([np.ones_like(t), t - t[0]])
+    xv = xv - A @ np.linalg.lstsq(A, xv, rcond=None)[0]
+    xd = x - A @ np.linalg.lstsq(A, x, rcond=None)[0]
+    den = float(np.sqrt(np.sum(xv * xv) * np.sum(xd * xd)))
+    if den == 0.0:
+        return []  # a constant channel is named by the dead-channel check
+    corr, gain = float(np.sum(xv * xd)) / den, float(np.sum(xv * xd) / np.sum(xv * xv))
+    if corr <= -VELOCITY_MIN_CORR:
+        return [f"{label}: column 'velocity [m/s]' runs against the displacement's rate (correlation {corr:.2f}): "
+                f"velocity sign flipped? expected velocity = d(displacement)/dt"]
+    if corr < VELOCITY_MIN_CORR:
+        return [f"{label}: column 'velocity [m/s]' is not the displacement's rate (correlation {corr:.2f} of the "
+                f"integrated velocity with the displacement; expected >= {VELOCITY_MIN_CORR})"]
+    if not 1.0 / VELOCITY_MAX_GAIN <= gain <= VELOCITY_MAX_GAIN:
+        return [f"{label}: column 'velocity [m/s]' is {1 / gain:.3g}x the displacement's rate: "
+                f"{mixup(1 / gain, 'm/s')}"]
+    return []
+
+
 def _check_generic(df, meta, where, current_range, require) -> pd.DataFrame:
     df = check_frame(df, meta, where, None, current_range=current_range)
     errors = []
@@ -281,13 +338,19 @@ def _check_generic(df, meta, where, current_range, require) -> pd.DataFrame:
                 errors.append(f"{label}: column 'time [s]': sampling rate {fs:.4g} Hz outside the {lo:g} .. {hi:g} Hz "
                               f"of a bench record: " + ("time in ms (or us) under a [s] header?" if fs < lo
                                                         else "time in s under a smaller unit's header?"))
-        for q in ("displacement", "force"):
+        if len(t) < GENERIC_MIN[0] or (len(t) >= 2 and t[-1] - t[0] < GENERIC_MIN[1]):
+            errors.append(f"{label}: {len(t)} samples over {t[-1] - t[0] if len(t) >= 2 else 0.0:.3g} s; a bench "
+                          f"record needs at least {GENERIC_MIN[0]} samples over {GENERIC_MIN[1]:g} s")
+            continue
+        for q in ("displacement", "force", "velocity", "rod acceleration", "dp", "flow"):
             c = f"{q} [{SI[q]}]"
             if c in g and np.ptp(g[c].to_numpy(float)) == 0:
                 errors.append(f"{label}: column {c!r} is constant ({float(g[c].iloc[0])!r}); expected a record of an "
                               f"excited test (sensor disconnected?)")
         if not errors:
             errors += _magnitude_errors(g, label, {}, "")
+        if not errors:
+            errors += _velocity_errors(g, label)
         if not errors:
             errors += _sign_errors(g, label, "damper")
     if errors:

@@ -191,7 +191,9 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "force at zero speed", "offset by the friction", _T),
     EffectRecord("top_mount_dynamics", "AutoBushFD rubber dynamics", "thesis eq. 4.32-4.36", True,
                  "top-mount force", "stiffer and damped", _T),
-    EffectRecord("piston_leakage", "laminar leakage past a worn piston band",
+    EffectRecord("piston_leakage", "laminar leakage past a worn piston band (pressure flow through the "
+                 "equivalent concentric gap: an eccentric band's 1 + 1.5 e^2 and the piston's Couette drag are "
+                 "absorbed by the fitted gap)",
                  "White, Viscous Fluid Flow, eq. 3-44", False,
                  f"rebound peak force ({_M13})", "lower", _E,
                  truth='eccentric annular leakage past the worn piston band with temperature-dependent viscosity (truth/chambers.py band_leakage, value chambers.BAND_H; also its shear force)',
@@ -213,7 +215,9 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  truth_effects=("air_entrainment", "gas_dissolution")),
     EffectRecord("valve_friction_current", "Coulomb friction of the active valve's spool with memory (a stuck "
                  "spool holds its opening: opening and closing branches 2 F_f / A_sp apart), linear in the current, "
-                 "growing or shrinking; thesis 7.3, third discrepancy (valve friction at the end of rebound)",
+                 "growing or shrinking; after thesis 7.3, third discrepancy (its \"valve level\" friction is the "
+                 "shim stacks' of 4.4 / 4.7.2, eq. 4.26, too high at 1.6 A and too low at 0.9 A; this candidate "
+                 "places the current dependence at the one current-driven valve, an interpretation)",
                  "Al-Bender et al. 2005 (Maxwell slip); Manring 2005, 4.6", False,
                  f"third-tube peak pressure; compression peak force ({_M13}, 1.6 A)", "higher", _E,
                  truth="no friction in the truth's valve: the nearest are the pilot-operated valve's opening / closing hysteresis (control-chamber filling) and its saturating, current-dependent magnetic force (truth/solenoid.py)",
@@ -238,7 +242,8 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  "rebound larger, compression smaller, by ~a s2 |v| (no offset fits it)", _E,
                  truth="the rod seal's lip loaded by the rebound-chamber pressure and its oil film (truth/seal.py K_PR, C_V): higher in rebound",
                  truth_effects=("seal",)),
-    EffectRecord("top_mount_backlash", "free play of the top mount (smoothed dead zone)",
+    EffectRecord("top_mount_backlash", "free play of the top mount (smoothed dead zone; out of contact the "
+                 "rubber passes on no force of its internal states)",
                  "Nordin & Gutman, Automatica 38 (2002)", False,
                  "top-mount force near zero deflection (top-mount sine 10 Hz +-1 mm)", "lower", _E,
                  truth="the truth's top-mount free play: a sleeve mass in a clearance with Hunt-Crossley impacts (truth/freeplay.py) [top_mount_free_play]",

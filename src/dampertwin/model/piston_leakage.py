@@ -7,6 +7,15 @@ piston: laminar (Poiseuille) flow between the rebound and compression
 chambers, Q = G (P_r - P_c) with G = pi D h^3 / (12 mu L) [m^3/(s Pa)]
 (White, Viscous Fluid Flow, 3rd ed., eq. 3-44: narrow concentric annulus).
 With the oil_thermal effect, mu follows the oil temperature: G nu0 / nu.
+
+An approximation, deliberately: ``gap`` is the EQUIVALENT concentric
+clearance. A band off-axis by a fraction e of its clearance h passes
+(1 + 1.5 e^2) times the concentric flow (narrow eccentric annulus; Merritt,
+Hydraulic Control Systems, 1967), so the fitted
+gap is h (1 + 1.5 e^2)^(1/3) (52 um for an eccentric 47 um at e = 0.5); the
+Couette flow the moving piston drags through the gap (pi D h ds/dt / 2,
+13 % of the pressure flow at 30 um, 13 Hz +-5 mm) and the band's shear
+force are left out, so the fitted gap absorbs them too.
 """
 
 from __future__ import annotations

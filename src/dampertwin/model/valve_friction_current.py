@@ -4,7 +4,12 @@ depend "on frictional forces at the valve level which is excessive at low
 and mid-stroke under high active valve current. However, when the current
 is decreased (0.9A) ... the frictional forces are underestimated by the
 model"; not in the thesis model, whose P/Q map is friction-free; off in the
-baseline).
+baseline). The thesis' "valve level" friction is the shim stacks' (4.4,
+4.7.2, eq. 4.26: in the model as shim_friction, its F_c in the discrepancy
+workflow's calibration pool); 7.3 finds it wrong in opposite directions at
+1.6 and 0.9 A, i.e. dependent on the operating point. This candidate is an
+interpretation, not the thesis' mechanism: it places a current-dependent
+friction at the one valve the current drives.
 
 The spool (pressure-loaded area A_sp) sets the valve's opening; write its
 position as the pressure drop p_s [Pa] its spring and solenoid balance, so
