@@ -253,3 +253,32 @@ def test_a_non_numeric_cell_is_named_with_its_row(tmp_path, capsys):
                  "  F: {quantity: force, unit: N}\n")
     assert main(["import", str(src), "--map", str(m), "--out", str(tmp_path / "o.parquet")]) == 2
     assert "1 non-numeric values (the first, data row 7: an empty cell" in _err(capsys)
+
+
+@pytest.mark.parametrize("value, needle", [(-9.0e8, "expected the same sign"), (9.0e5, "x the nominal part's")])
+def test_a_truth_sample_value_of_another_sign_or_unit_is_refused(tmp_path, value, needle):
+    """oil.K0 negative or 1000x too soft (Pa written as kPa): refused when the sample is checked, naming the key,
+    not as a step-size underflow in the compliance test."""
+    import yaml
+
+    from dampertwin.design import load
+    from dampertwin.lab import LabError, check_sample, load_sample
+    from test_reliability_io import ROOT
+    doc = yaml.safe_load((ROOT / "conf" / "lab" / "sample.yaml").read_text())
+    doc["truth"]["values"]["oil.K0"] = value
+    p = tmp_path / "s.yaml"
+    p.write_text(yaml.safe_dump(doc))
+    with pytest.raises(LabError, match="oil.K0") as ei:
+        check_sample(load_sample(p), load(ROOT / "conf" / "lab" / "nominal.yaml"))
+    assert needle in str(ei.value)
+
+
+def test_a_lab_folder_of_another_sample_is_refused(tmp_path):
+    import dampertwin.lab as lab
+    from test_reliability_io import ROOT
+    rec = write_frame(tmp_path / "o" / "compliance" / "baseline.parquet", device(),
+                      {"synthetic": True, "sample_hash": "0123456789abcdef"})
+    with pytest.raises(lab.LabError, match="holds records of another sample"):
+        lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=[("friction", "baseline")],
+                    workers=1, progress=False)
+    assert rec.is_file() and not (tmp_path / "o" / ".incomplete").exists()

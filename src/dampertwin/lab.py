@@ -194,6 +194,21 @@ def _nominal_path(conf: Path, sample: dict) -> Path:
 INCOMPLETE = ".incomplete"  # the marker file of a lab folder being written (see run_lab)
 
 
+def _check_other_sample(out: Path, sample_doc: dict) -> None:
+    """OUT may hold records of this sample (a rerun, or other tests of it), not
+    another's: they would mix two parts in one folder without a word."""
+    from .io import read_meta
+
+    for f in sorted(out.glob("*/*.parquet")) if out.is_dir() else []:
+        try:
+            h = read_meta(f).get("sample_hash")
+        except Exception:  # not a readable record: not the lab's, left to whoever reads it
+            continue
+        if h and h != sample_doc.get("_hash"):
+            raise LabError(f"--out {out}: holds records of another sample ({f}, sample hash {h}); write this "
+                           f"sample ({sample_doc.get('_path')}) into an empty folder")
+
+
 def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None, seed: int = 0,
             progress: bool = True, conf: str | Path | None = None, only: list[tuple[str, str]] | None = None,
             workers: int | None = None) -> list[Path]:
@@ -224,6 +239,7 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
             raise LabError(f"--tests: unknown test(s) {', '.join(unknown)}; expected some of {', '.join(known)}")
         items = [it for it in items if it[0] in tests]
     out = Path(out)
+    _check_other_sample(out, sample_doc)
     out.mkdir(parents=True, exist_ok=True)
     marker = out / INCOMPLETE  # removed once every record is written: a killed run leaves it (readers refuse)
     marker.write_text(f"a dampertwin lab run of {sample} is writing this folder, or was stopped before it "

@@ -201,6 +201,8 @@ def _label_errors(df, meta, where, spec: ProtocolSpec, valve) -> list[str]:
 
 def mixup(ratio: float, si: str) -> str:
     """The unit a value ``ratio`` times its expected size was likely written in."""
+    if not ratio > 0:
+        return "wrong unit or scale?"
     best = min(MIXUPS.get(si, ()), key=lambda uf: abs(math.log10(ratio * uf[1])), default=None)
     if best is None or abs(math.log10(ratio * best[1])) > math.log10(PLAUSIBLE_FACTOR):
         return "wrong unit or scale?"
@@ -276,7 +278,8 @@ CURRENT_TOL = 0.05  # [A] a record's mean current against the one its run label 
 
 def _current_errors(g: pd.DataFrame, label: str, run) -> list[str]:
     """The active valve's current is >= 0 and, where the run label names it
-    (``..._I1.6``), within CURRENT_TOL of it."""
+    (``..._I1.6``), within CURRENT_TOL of it (a column of zeros: a passive
+    damper, whose runs keep the protocol's labels)."""
     if "current [A]" not in g:
         return []
     i = g["current [A]"].to_numpy(float)
@@ -284,7 +287,9 @@ def _current_errors(g: pd.DataFrame, label: str, run) -> list[str]:
         return [f"{label}: column 'current [A]' is negative ({np.min(i):.4g} A); expected the valve's current >= 0 "
                 f"(a sign or scale in the mapping?)"]
     m = re.search(r"(?:^|_)I(\d+(?:\.\d+)?)$", str(run)) if run is not None else None
-    if m and abs(float(np.mean(i)) - float(m.group(1))) > CURRENT_TOL:
+    if not np.any(i):  # a passive damper (no active valve): the run labels keep the protocol's currents
+        return []
+    if m and float(m.group(1)) > 0 and abs(float(np.mean(i)) - float(m.group(1))) > CURRENT_TOL:
         return [f"{label}: column 'current [A]' averages {np.mean(i):.4g} A where the run label names "
                 f"{m.group(1)} A: {mixup(float(np.mean(i)) / float(m.group(1)), 'A')}"]
     return []

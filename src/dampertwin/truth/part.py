@@ -14,9 +14,11 @@ pressure, slope and bleed flow change.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from .params import INTAKES, SHIMS, check_effects, check_values, derive, nominal
+from .params import INTAKES, SHIMS, TruthParameterError, check_effects, check_values, derive, nominal
 
 
 def _initial_slope(g: dict) -> float:
@@ -68,6 +70,25 @@ def variant_values(base, case) -> dict:
     return v
 
 
+PLAUSIBLE_RATIO = 100.0  # a real part's value lies within this factor of its drawing (a unit mix-up: 1e3 or more)
+
+
+def _implausible(key: str, value, nominal_value) -> str:
+    """'' or what is wrong with a sample's value against the nominal part's:
+    the same sign and within PLAUSIBLE_RATIO of it (a switch or a value whose
+    nominal is 0 or not a number is not judged)."""
+    if not isinstance(nominal_value, (int, float)) or isinstance(nominal_value, bool) or nominal_value == 0 \
+            or not math.isfinite(nominal_value) or not isinstance(value, (int, float)):
+        return ""
+    r = value / nominal_value
+    if r <= 0:
+        return f"{key}: {value!r}; the nominal part's is {nominal_value:.4g}: expected the same sign"
+    if not 1.0 / PLAUSIBLE_RATIO <= r <= PLAUSIBLE_RATIO:
+        return (f"{key}: {value!r} is {r:.3g}x the nominal part's {nominal_value:.4g}: expected a real part's "
+                f"value within {PLAUSIBLE_RATIO:g}x of its drawing (a unit?)")
+    return ""
+
+
 def build(case, base, truth: dict | None = None, as_built_seed: int | None = None, P0: float | None = None,
           where: str = "truth"):
     """(parameter vector, rest dict {P0, V_gas0, T}, inputs) of the real part
@@ -79,6 +100,10 @@ def build(case, base, truth: dict | None = None, as_built_seed: int | None = Non
     check_values(values, f"{where}.values")
     check_effects(effects, f"{where}.effects")
     v = nominal(case)
+    implausible = [_implausible(k, x, v.get(k)) for k, x in values.items()]
+    implausible = [m for m in implausible if m]
+    if implausible:
+        raise TruthParameterError("; ".join(f"{where}.values.{m}" for m in implausible))
     v.update(values)
     v.update(variant_values(base, case))
     if P0 is not None:
