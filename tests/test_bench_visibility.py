@@ -133,3 +133,29 @@ def test_the_matrix_hides_a_worn_band_and_entrainment_that_starts(bench):
     assert free and all(s["values"] == {} for s in free)  # an effect parameter only: the part stays nominal
     control = [s for cell, t, s, _ in plan if cell == "control"]
     assert control and "effects" not in control[0]
+
+
+def test_a_control_hides_no_worn_band(bench):
+    """A control scales the shipped part's deviations, but not the one that is a hidden effect: the sample's
+    worn band (30 um) would give controls bands of 8-58 um, the band cell's own range. The other deviations
+    still scale (so a control differs from the nominal part)."""
+    import argparse
+
+    import numpy as np
+
+    from dampertwin.truth.params import TRUTH_NOMINAL
+
+    base = {k: v for k, v in bench.load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    dev = base["truth"]["values"]
+    assert dev["chambers.BAND_H"] > 3 * TRUTH_NOMINAL["chambers.BAND_H"]  # the premise: the shipped part is worn
+    args = argparse.Namespace(controls=8, per_effect=0, pairs=0, artefacts=0, magnitudes=[1.0], effects=None,
+                              dev_scale=1.5)
+    plan, _ = bench.truth_cases(args, base, np.random.default_rng(3))
+    controls = [s["values"] for cell, t, s, _ in plan if cell == "control"]
+    assert len(controls) == 8
+    for vals in controls:
+        sample = bench.hidden_sample(base, values=vals)
+        assert sample["truth"]["values"].get("chambers.BAND_H", TRUTH_NOMINAL["chambers.BAND_H"]) \
+            == TRUTH_NOMINAL["chambers.BAND_H"], vals
+    moved = [v["seal.F0"] for v in controls]
+    assert len(set(moved)) == 8 and all(TRUTH_NOMINAL["seal.F0"] <= x for x in moved), moved
