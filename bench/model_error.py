@@ -50,7 +50,7 @@ def overrides(text: str) -> dict:
     for item in filter(None, text.split(",")):
         key, sep, val = item.partition("=")
         if not sep or not key.strip():
-            raise SystemExit(f"--set: {item!r}; expected key=value")
+            raise argparse.ArgumentTypeError(f"{item!r}; expected key=value[,key=value...]")
         out[key.strip()] = yaml.safe_load(val)
     return out
 
@@ -110,17 +110,22 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", required=True, help="a bench/discrepancy.py --work folder")
     ap.add_argument("--case", type=int, required=True, help="the case number K (caseK/, startK/)")
-    ap.add_argument("--set", action="append", default=[], help="a further design: key=value[,key=value...]")
+    ap.add_argument("--set", action="append", default=[], type=lambda t: (t, overrides(t)),
+                    help="a further design: key=value[,key=value...]")
     ap.add_argument("--truth-off", action="append", default=[],
                     help="the records again with the truth's always-on effects off: NAME[+NAME...]")
     ap.add_argument("--tests", default="", help="only these tests (comma-separated, e.g. thermal,curving)")
+    ap.add_argument("--start", default=None,
+                    help="the starting design (default WORK/startK/start_design.yaml, else conf/design/baseline.yaml)")
     args = ap.parse_args(argv)
     work, conf = Path(args.work), ROOT / "conf"
     data = work / f"case{args.case}"
     stamp = data / ".case.json"
     if not stamp.is_file():
         raise SystemExit(f"{data}: no finished case (its .case.json stamp is missing)")
-    start = work / f"start{args.case}" / "start_design.yaml"
+    start = Path(args.start) if args.start else work / f"start{args.case}" / "start_design.yaml"
+    if args.start and not start.is_file():
+        raise SystemExit(f"--start {start}: no such design file")
     start = start if start.is_file() else conf / "design" / "baseline.yaml"
     stamp_doc = json.loads(stamp.read_text())
     want = set(filter(None, args.tests.split(",")))
@@ -133,7 +138,7 @@ def main(argv=None) -> int:
                          f"({', '.join(sorted({t for t, _ in stamp_doc['only']} - {'topmount'}))})")
     cfg = entry.load_config(conf)
     design = entry.load_design(start, conf)
-    designs = [("start", design)] + [(s, design.with_overrides(overrides(s))) for s in args.set]
+    designs = [("start", design)] + [(s, design.with_overrides(o)) for s, o in args.set]
     for row in compare(data, design, conf, cfg, tests, designs):
         print(json.dumps({**row, "start": str(start)}))
     for names in args.truth_off:
