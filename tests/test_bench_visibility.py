@@ -179,3 +179,18 @@ def test_a_start_set_takes_its_effects_out_of_the_expected_answers(bench, capsys
     with pytest.raises(SystemExit):  # a malformed override names the option
         bench.main(["--start-set", "effects.aeration"])
     assert "argument --start-set: 'effects.aeration'; expected key=value" in capsys.readouterr().err
+
+
+def test_lead_figures_tell_the_ranking_from_the_gate(bench):
+    """The first round's top candidate against the hidden effect's family, and what it closes of the gap above
+    the controls' median (the model-error floor); a control-free run has no floor."""
+    rows = [{"cell": "control", "truth": [], "gap_before": 4.0}, {"cell": "control", "truth": [], "gap_before": 4.4},
+            {"cell": "single", "truth": ["band_eccentricity"], "gap_before": 5.2, "lead": "piston_leakage",
+             "lead_gap_after": 4.0, "start_on": []},
+            {"cell": "single", "truth": ["band_eccentricity"], "gap_before": 6.2, "lead": "gas_release",
+             "lead_gap_after": 5.2, "start_on": []}]
+    got = bench.lead_figures(rows, "truth")
+    assert got["single_lead_true_rate"] == 0.5 and got["control_gap_floor"] == 4.2
+    assert got["single_above_floor"] == 2
+    assert got["single_lead_closed_of_excess_median"] == round(((1.2 / 1.0) + (1.0 / 2.0)) / 2, 3)
+    assert set(bench.lead_figures(rows[2:], "truth")) == {"single_lead_true_rate"}
