@@ -409,8 +409,8 @@ def main(argv=None) -> int:
                          "top mount; ci budgets), as the study's discrepancy stage; nominal = conf/design/baseline.yaml")
     ap.add_argument("--start-set", type=overrides, default={}, metavar="KEY=VALUE[,...]",
                     help="overrides of the starting design: an iterated workflow's later round, with the effects "
-                         "an earlier round added switched on at its values (their C parameters are calibrated "
-                         "with the pool; a hidden effect whose families are all on is expected as none)")
+                         "an earlier round added switched on at its values (the workflow does not offer them; a "
+                         "hidden effect whose families are all on is expected as none)")
     ap.add_argument("--controls", type=int, default=10)
     ap.add_argument("--per-effect", type=int, default=3)
     ap.add_argument("--pairs", type=int, default=5)

@@ -16,7 +16,6 @@ import numpy as np
 from ..design import ConfigTextError, DesignError, load, yaml_load_file
 from ..errors import UserError
 from ..io import check_out_dir, read_record, runs
-from ..lab import INCOMPLETE
 from ..protocols import flow_bench, load_protocol
 from ..variants import load_variant
 from . import features as F
@@ -69,8 +68,8 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
     Returns (units, variants by case, skipped notes)."""
     if not measured.is_dir():
         raise DiscrepancyError(f"{measured}: measured folder not found (expected DIR/<test>/<case>.parquet)")
-    if (measured / INCOMPLETE).is_file():  # a lab run that did not finish
-        raise DiscrepancyError(f"{measured}: written by a lab run that did not finish (its {measured / INCOMPLETE} "
+    if (measured / ".incomplete").is_file():  # lab.INCOMPLETE: a lab run that did not finish
+        raise DiscrepancyError(f"{measured}: written by a lab run that did not finish (its {measured / '.incomplete'} "
                                f"marker); its records may be partial: run the lab again")
     present = {p.name: sorted(p.glob("*.parquet")) for p in sorted(measured.iterdir()) if p.is_dir()}
     present = {k: v for k, v in present.items() if v}
