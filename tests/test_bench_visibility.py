@@ -188,9 +188,11 @@ def test_lead_figures_tell_the_ranking_from_the_gate(bench):
             {"cell": "single", "truth": ["band_eccentricity"], "gap_before": 5.2, "lead": "piston_leakage",
              "lead_gap_after": 4.0, "start_on": []},
             {"cell": "single", "truth": ["band_eccentricity"], "gap_before": 6.2, "lead": "gas_release",
-             "lead_gap_after": 5.2, "start_on": []}]
+             "lead_gap_after": 5.2, "start_on": []},
+            {"cell": "single", "truth": ["band_eccentricity"], "gap_before": 4.1, "lead": "piston_leakage",
+             "lead_gap_after": 4.0, "start_on": []}]  # below the controls' floor: no excess to close
     got = bench.lead_figures(rows, "truth")
-    assert got["single_lead_true_rate"] == 0.5 and got["control_gap_floor"] == 4.2
+    assert got["single_lead_true_rate"] == 2 / 3 and got["control_gap_floor"] == 4.2
     assert got["single_above_floor"] == 2
     assert got["single_lead_closed_of_excess_median"] == round(((1.2 / 1.0) + (1.0 / 2.0)) / 2, 3)
     assert set(bench.lead_figures(rows[2:], "truth")) == {"single_lead_true_rate"}
