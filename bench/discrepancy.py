@@ -62,7 +62,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from dampertwin.design import load  # noqa: E402
+from dampertwin.design import DesignError, load  # noqa: E402
 from dampertwin.discrepancy import catalogue, entry  # noqa: E402
 from dampertwin.discrepancy.hidden import accelerometer_resonance, hidden_sample, loadcell_crosstalk  # noqa: E402
 from dampertwin.io import read_meta, write_frame  # noqa: E402
@@ -148,7 +148,7 @@ def _artefacts(args, rng) -> list:
 def families(truth: list, lab: str, on=()) -> set:
     """Library effects accepted as the answer for the hidden ``truth`` effects: the library
     table's truth_effects column (truth lab), the effects themselves (library lab); less the
-    effects ``on`` in the start design (--start-set: already in the model, calibrated, never named)."""
+    effects ``on`` in the start design (--start-set: already in the model, never offered or named)."""
     if lab != "truth":
         return set(truth) - set(on)
     from dampertwin.model.params import EFFECTS_LIBRARY
@@ -446,6 +446,10 @@ def main(argv=None) -> int:
     conf = ROOT / "conf"
     cfg = entry.load_config(conf)
     design = load(conf / "design" / "baseline.yaml")
+    try:  # before any lab run: an unknown key or a bad value of --start-set
+        design.with_overrides(args.start_set)
+    except DesignError as e:
+        raise SystemExit(f"--start-set: {e}") from None
     sample = conf / "lab" / ("sample.yaml" if args.lab == "truth" else "lab2/sample.yaml")
     base = {k: v for k, v in load_sample(sample).items() if not k.startswith("_")}
     only = [tuple(x.split(":")) for x in args.tests.split(",")]

@@ -179,6 +179,9 @@ def test_a_start_set_takes_its_effects_out_of_the_expected_answers(bench, capsys
     with pytest.raises(SystemExit):  # a malformed override names the option
         bench.main(["--start-set", "effects.aeration"])
     assert "argument --start-set: 'effects.aeration'; expected key=value" in capsys.readouterr().err
+    with pytest.raises(SystemExit, match="(?s)--start-set: .*unknown effect 'nosuch'"):  # before any lab run
+        bench.main(["--start-set", "effects.nosuch=true", "--work", str(ROOT / "no-such-work-folder")])
+    assert not (ROOT / "no-such-work-folder").exists()
 
 
 def test_lead_figures_tell_the_ranking_from_the_gate(bench):
