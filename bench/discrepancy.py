@@ -148,7 +148,8 @@ def _artefacts(args, rng) -> list:
 def families(truth: list, lab: str, on=()) -> set:
     """Library effects accepted as the answer for the hidden ``truth`` effects: the library
     table's truth_effects column (truth lab), the effects themselves (library lab); less the
-    effects ``on`` in the start design (--start-set: already in the model, never offered or named)."""
+    effects ``on`` in the start design (--start-set: already in the model, their C parameters
+    calibrated with the pool, never offered or named)."""
     if lab != "truth":
         return set(truth) - set(on)
     from dampertwin.model.params import EFFECTS_LIBRARY

@@ -20,6 +20,7 @@ from scipy.integrate import solve_ivp
 from dampertwin import simulate
 from dampertwin.design import loads
 from dampertwin.discrepancy.entry import load_config
+from dampertwin.discrepancy.refits import calibration_params
 from dampertwin.discrepancy.workflow import catalogue
 from dampertwin.model import layout as L
 from dampertwin.model.active_valve_driver import driver_rates
@@ -72,6 +73,21 @@ def test_the_workflow_lists_the_new_candidates(base):
         assert c.effects == [name] and {p.key for p in c.params} == keys, name
         assert all(p.lo < c.typical[p.key] < p.hi for p in c.params), name
         assert cfg["separating_tests"][name] in ("random", "monosine", "compliance"), name
+
+
+def test_an_effect_switched_on_is_calibrated_not_offered(base):
+    """Iterated workflow: an effect already on in the design (added in an earlier round) leaves the
+    catalogue and its C parameters join the calibration pool, started at the design's values; off, the
+    pool is the config's alone."""
+    cfg = load_config(ROOT / "conf")
+    off = {p.key for p in calibration_params(base, cfg)}
+    assert not any(k.startswith(("aeration.", "oil_thermal.")) for k in off)
+    on = base.with_overrides({"effects.aeration": True, "effects.oil_thermal": True, "aeration.alpha0": 0.02})
+    pool = {p.key: p for p in calibration_params(on, cfg)}
+    c_keys = {e.key for n in ("aeration", "oil_thermal") for e in base.effect_parameters(n) if e.type == "C"}
+    assert c_keys and set(pool) == off | c_keys  # the C ones only (tau_rel, tau_dis, C_th stay fixed)
+    assert pool["aeration.alpha0"].start == 0.02
+    assert {"aeration", "oil_thermal"}.isdisjoint(c.name for c in catalogue(on, cfg))
 
 
 # ------------------------------------------------------------ off is off, beside another state effect

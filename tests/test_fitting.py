@@ -80,6 +80,23 @@ def test_fit_cli_friction_with_command_line_bounds(tmp_path, capsys):
     assert "unknown friction parameter" in capsys.readouterr().err
 
 
+def test_friction_search_errors_name_their_source(tmp_path, capsys):
+    """An item the friction fit refuses is named with where it came from: the --bounds file, --param."""
+    rec = synthetic_record(tmp_path / "rec.parquet", duration=2.0)
+    bounds = tmp_path / "b.yaml"
+    bounds.write_text("parameters:\n  - {name: F_c, bounds: [100, 0]}\n")
+    out = tmp_path / "o"
+    assert main(["fit", "friction", "--data", str(rec), "--out", str(out), "--bounds", str(bounds)]) == 2
+    assert f"{bounds}: item 0 (F_c): bad interval" in capsys.readouterr().err
+    assert main(["fit", "friction", "--data", str(rec), "--out", str(out), "--param", "mu=0:1"]) == 2
+    assert "--param: item 0 (" in capsys.readouterr().err
+    bounds.write_text("parameters:\n  - {name: F_c, bounds: [0, 100]}\n")
+    assert main(["fit", "friction", "--data", str(rec), "--out", str(out), "--bounds", str(bounds),
+                 "--param", "mu=0:1"]) == 2
+    assert f"{bounds} + --param: item 1 (" in capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_param_args_and_errors():
     assert parse_param_args(["F_c=0:50", "top_mount.k0=1e3:1e6:log"]) == [
         {"name": "F_c", "bounds": [0.0, 50.0], "scale": "lin"},

@@ -136,6 +136,12 @@ def _profile(name: str) -> dict:
     return yaml_load(p.read_text())
 
 
+def _items_source(cfg: dict, params) -> str:
+    """Where the search items came from (the --bounds file, --param), for their errors."""
+    src = [cfg["_where"] if cfg.get("parameters") and cfg.get("_where") else None, "--param" if params else None]
+    return " + ".join(x for x in src if x) or "friction search space"
+
+
 def run_fit_cli(args) -> tuple[Path, list[str]]:
     """``dampertwin fit`` entry: returns the written fit.json path and the
     fit's flags (parameters on a bound, unsupported effects)."""
@@ -164,7 +170,8 @@ def run_fit_cli(args) -> tuple[Path, list[str]]:
     if args.submodel == "friction":
         fixed = {k: float(v) for k, v in (cfg.get("fixed") or {}).items()}
         res = fit_friction(args.data, fixed=fixed, effects=tuple(dict.fromkeys(args.effect)),
-                           holdout_cycles=args.holdout_cycles, **kw)
+                           holdout_cycles=args.holdout_cycles,
+                           where=_items_source(cfg, args.param), **kw)
     elif args.submodel == "valve":
         valve = args.valve or cfg.get("valve")
         if not valve:

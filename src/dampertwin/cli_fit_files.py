@@ -205,7 +205,7 @@ def fit_topmount(data, *, design=None, bounds=None, predict=(), out=None, config
 def fit_friction(data, *, design: Design | str | os.PathLike | None = None, bounds: list[dict] | None = None,
                  predict=(), out: str | os.PathLike | None = None, seed: int = 0, starts: int = 8,
                  fixed: dict | None = None, effects=(), holdout_cycles: int | None = None,
-                 velocity: str = "record") -> dict:
+                 velocity: str = "record", where: str = "friction search space") -> dict:
     """Fit the friction law (:mod:`dampertwin.calibration.friction_fit`) to a
     friction record file (``time [s]``, ``displacement [m]``, ``force [N]``,
     optional ``velocity [m/s]``; force positive opposing positive velocity).
@@ -215,7 +215,8 @@ def fit_friction(data, *, design: Design | str | os.PathLike | None = None, boun
     effects added to the law (asymmetric, free_play). ``holdout_cycles``:
     cycles at the end of the record not fitted (default a third).
     ``velocity``: 'record' (the velocity column if present) or
-    'displacement' (always differentiate the displacement)."""
+    'displacement' (always differentiate the displacement). ``where``: the
+    search items' source (the --bounds file), named in their errors."""
     paths = [Path(data)] + [Path(p) for p in predict]
     frames = _read_all(paths)
     d = _load(design)
@@ -223,7 +224,7 @@ def fit_friction(data, *, design: Design | str | os.PathLike | None = None, boun
     base.update({k: float(v) for k, v in (fixed or {}).items()})
     result, recs, sims = cf.fit_friction_records([str(p) for p in paths], frames, base, items=bounds,
                                                  effects=effects, holdout=holdout_cycles, seed=seed, starts=starts,
-                                                 velocity=velocity, fixed=tuple(fixed or ()))
+                                                 velocity=velocity, fixed=tuple(fixed or ()), where=where)
     _with_shas(result, out, lambda o: friction_plots(o, paths, recs, sims, result))
     return result
 

@@ -372,15 +372,16 @@ def friction_record(name, f: pd.DataFrame, velocity: str) -> dict:
 
 
 def fit_friction_records(names, frames, base: dict, *, items=None, effects=(), holdout=None, seed: int = 0,
-                         starts: int = 8, velocity: str = "record", fixed=()):
+                         starts: int = 8, velocity: str = "record", fixed=(), where: str = "friction search space"):
     """The friction law (:func:`~.friction_fit.fit_friction_record`) fitted to
     the first record (``base``: values of the parameters not searched;
-    ``fixed``: names kept out of the default search), the others predicted.
-    Returns (result, records, simulations)."""
+    ``fixed``: names kept out of the default search), the others predicted;
+    ``where`` names the search items' source in errors. Returns (result, records, simulations)."""
     recs = [friction_record(p, f, velocity) for p, f in zip(names, frames)]
     try:
         result = _ff.fit_friction_record(recs[0], base, items=items, effects=tuple(effects), holdout=holdout,
-                                         predicted=recs[1:], seed=seed, starts=starts, fixed=tuple(fixed))
+                                         predicted=recs[1:], seed=seed, starts=starts, fixed=tuple(fixed),
+                                         where=where)
     except _ff.FrictionFitError as e:
         raise FitError(str(e)) from None
     sims = result.pop("_sims")

@@ -53,6 +53,18 @@ def calibration_params(design: Design, cfg: dict) -> list[ParamSpec]:
         if not lo < hi:
             continue
         out.append(ParamSpec.auto(key, lo, hi, float(p.value)))
+    return out + _on_effect_params(design, {q.key for q in out})
+
+
+def _on_effect_params(design: Design, have: set) -> list[ParamSpec]:
+    """The C parameters of effects switched ON in the design (an effect added in an earlier
+    round of the workflow, or by the engineer): calibrated like the pool's parameters, since
+    they are part of the model now, not candidates (``catalogue`` leaves them out)."""
+    out = []
+    for e in design.effect_parameters() if hasattr(design, "effect_parameters") else ():
+        if (design.effects.get(e.effect, False) and e.type == "C" and e.bounds is not None
+                and e.key not in have and float(e.bounds[0]) < float(e.bounds[1])):
+            out.append(ParamSpec.auto(e.key, float(e.bounds[0]), float(e.bounds[1]), float(design[e.key])))
     return out
 
 
