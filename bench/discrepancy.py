@@ -247,11 +247,16 @@ def cases(args, design, cfg, rng):
 VALVES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
 
 
+MEASURED_MAP = "active_valve_measured.csv"  # the part's P/Q map beside the approach-1 start design
+
+
 def approach1_design(conf: Path, data: Path, seed: int, out: Path) -> Path:
     """The study's starting point for the workflow (stages flowbench_fit, compliance_fit,
     topmount_fit, assemble for baseline_1.6): the baseline design with its four valves fitted on
     the case's flow-bench records, then the compliance and the top mount, ci-profile GA and polish
-    budgets, the stages' order. Returns the calibrated design's path."""
+    budgets, the stages' order; with an active-valve bench record (activevalve/baseline), the
+    active valve's own P/Q map built from it in place of the datasheet's (stage activevalve_map).
+    Returns the calibrated design's path."""
     from omegaconf import OmegaConf
 
     from dampertwin.calibration.approach1 import fit_compliance, fit_top_mount, fit_valve
@@ -288,6 +293,14 @@ def approach1_design(conf: Path, data: Path, seed: int, out: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     path = out / "start_design.yaml"
     d.dump(path)
+    rec = data / "activevalve" / "baseline.parquet"
+    if rec.is_file():
+        from dampertwin.calibration.active_valve_map import map_from_record
+        from dampertwin.design import write_map
+
+        meas, _ = read_record(rec, "activevalve", conf=conf)
+        write_map(out / MEASURED_MAP, map_from_record(meas, d.pq_map, str(rec)))
+        load(path, map_dirs=[conf / "design"]).with_overrides({"active_valve.pq_map": MEASURED_MAP}).dump(path)
     return path
 
 
@@ -428,8 +441,9 @@ def main(argv=None) -> int:
     ap.add_argument("--tests", default="flowbench:piston_rebound,flowbench:piston_intake,flowbench:base_compression,"
                                         "flowbench:base_intake,compliance:baseline,monosine:baseline_1.6,"
                                         "monosine:baseline_0.32,random:baseline_1.6,curving:baseline,thermal:baseline,"
-                                        "friction:baseline,topmount:baseline",
-                    help="lab records generated per case (the ci profile's tests; topmount for the approach-1 start)")
+                                        "friction:baseline,topmount:baseline,activevalve:baseline",
+                    help="lab records generated per case (the ci profile's tests; topmount and activevalve for the "
+                         "approach-1 start)")
     ap.add_argument("--visibility", action="store_true",
                     help="also generate each single / pair case without its hidden effects (same part, seed and "
                          "noise) and report how far the effects move the records in the workflow's noise units "
@@ -454,6 +468,8 @@ def main(argv=None) -> int:
     sample = conf / "lab" / ("sample.yaml" if args.lab == "truth" else "lab2/sample.yaml")
     base = {k: v for k, v in load_sample(sample).items() if not k.startswith("_")}
     only = [tuple(x.split(":")) for x in args.tests.split(",")]
+    if args.lab != "truth":  # a lab-2 part has no solenoid valve of its own: the datasheet map stays
+        only = [x for x in only if x[0] != "activevalve"]
     tests = {}
     for t, c in only:
         tests.setdefault(t, []).append(c)

@@ -137,8 +137,11 @@ def test_atomic_write_leaves_no_partial_file(tmp_path, monkeypatch):
 def test_all_shipped_protocols_validate_and_build():
     P = load_all(CONF / "test")
     assert set(P) == {"flowbench", "compliance", "topmount", "curving", "monosine", "random", "training",
-                      "verification", "monosine16", "thermal", "friction", "module_topmount", "dyno"}
+                      "verification", "monosine16", "thermal", "friction", "module_topmount", "dyno", "activevalve"}
     runs = {k: build_runs(v, seed=5) for k, v in P.items()}
+    av = runs["activevalve"]  # one pressure ramp per current of the design's map, above its largest dp (150 bar)
+    assert [r.current for r in av] == [0.32, 0.6, 0.9, 1.2, 1.6] and all(r.configuration == "active_valve" for r in av)
+    assert av[0].excitation.kind == "pressure" and av[0].excitation.value.max() == pytest.approx(1.6e7)
     fb = {r.bench_valve: r for r in runs["flowbench"]}
     assert fb["piston_rebound"].excitation.value.max() == pytest.approx(80 / 60000)
     assert fb["base_intake"].excitation.value.max() == pytest.approx(30 / 60000)

@@ -21,10 +21,14 @@ def grid_deviation(t: np.ndarray) -> float:
     return float(np.max(np.abs(t - (t[0] + dt * np.arange(len(t)))))) / dt
 
 
+KINDS = ("displacement", "flow", "pressure")
+
+
 @dataclass(frozen=True)
 class Excitation:
     """Samples ``value`` and ``rate`` at t0 + k*dt. ``kind`` is
-    "displacement" [m] or "flow" [m^3/s]."""
+    "displacement" [m], "flow" [m^3/s] or "pressure" [Pa] (the pressure drop
+    of the active-valve bench)."""
 
     t0: float
     dt: float
@@ -40,8 +44,8 @@ class Excitation:
             raise ValueError("excitation contains non-finite samples")
         if not self.dt > 0:
             raise ValueError(f"excitation dt must be > 0, got {self.dt}")
-        if self.kind not in ("displacement", "flow"):
-            raise ValueError(f"excitation kind must be 'displacement' or 'flow', got {self.kind!r}")
+        if self.kind not in KINDS:
+            raise ValueError(f"excitation kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
 
     @property
     def t_end(self) -> float:

@@ -97,6 +97,7 @@ def plan(conf: Path, protocols: dict | None = None,
     variants = load_variants(conf / "variant")
     protocols = load_all(conf / "test") if protocols is None else protocols
     items = [("flowbench", v) for v in VALVE_DESIGNS] + [("compliance", "baseline")]
+    items += [("activevalve", "baseline")] if "activevalve" in protocols else []
     items += [("topmount", t) for t in TOP_MOUNTS] + [("curving", "baseline")]
     items += [("monosine", v.case) for v in variants] + [("random", v.case) for v in variants]
     items += [(t, "baseline") for t in APPROACH2_TESTS + EXTRA_TESTS if t in protocols]
@@ -140,6 +141,12 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
     elif protocol == "topmount":
         vcase = TOP_MOUNTS[case]
         d = variants[vcase].apply(nominal) if vcase else nominal
+    elif protocol == "activevalve":
+        if not is_truth_sample(sample):
+            raise LabError(f"{sample.get('_path', '<sample>')}: the active-valve bench runs on a lab-3 sample (the "
+                           f"reference damper's solenoid valve); a lab-2 sample has no valve of its own")
+        d = nominal
+        bench = flow_bench(pc)
     elif protocol in ("compliance", "curving", "dyno") or protocol in APPROACH2_TESTS + EXTRA_TESTS:
         d = nominal
     else:
@@ -232,6 +239,8 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
     protocols = load_all(conf / "test")
     check_corners(sample_doc, protocols)
     items = plan(conf, protocols, getattr(nominal, "architecture", DEFAULT_ARCHITECTURE)) if only is None else list(only)
+    if only is None and not is_truth_sample(sample_doc):  # a lab-2 part has no solenoid valve of its own
+        items = [it for it in items if it[0] != "activevalve"]
     if tests is not None:
         known = sorted({t for t, _ in items})
         unknown = [t for t in tests if t not in known]

@@ -142,9 +142,11 @@ def _recorded(run, r, b, rng, precharge, oil_dT, temperature, deflection=False) 
         return quantise(y, s.get("resolution", 0.0))
 
     cols = {"time [s]": r.time}
-    if run.configuration == "valve":
+    if run.configuration in ("valve", "active_valve"):
         cols["flow [m^3/s]"] = meas("flow [m^3/s]", r["flow [m^3/s]"])
         cols["dp [Pa]"] = meas("dp [Pa]", r["dp [Pa]"])
+        if run.configuration == "active_valve":
+            cols["current [A]"] = np.full(len(r.time), run.current)
     else:
         cols["displacement [m]"] = meas("displacement [m]", r["displacement [m]"])
         if run.configuration == "damper":

@@ -30,6 +30,7 @@ UNITS = {
 }
 REQUIRED = {
     "flowbench": ("time", "flow", "dp"),
+    "activevalve": ("time", "flow", "dp", "current"),
     "compliance": ("time", "displacement", "force", "current"),
     "curving": ("time", "displacement", "force", "current"),
     "monosine": ("time", "displacement", "force", "rod acceleration", "current"),
@@ -42,7 +43,7 @@ REQUIRED = {
     "dyno": ("time", "displacement", "force"),  # a passive damper's dyno export (current, oil temperature optional)
 }
 # shortest usable record per protocol [s] (per run where a file holds several)
-MIN_DURATION = {"flowbench": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
+MIN_DURATION = {"flowbench": 2.0, "activevalve": 2.0, "compliance": 0.05, "curving": 0.2, "monosine": 2.0 / 13.0, "random": 8.0,
                 "topmount": 0.02, "training": 1.0, "verification": 1.0, "thermal": 2.0,
                 "friction": 0.5, "dyno": 1.0}
 from ..excitation import UNIFORM_TOL, grid_deviation  # noqa: E402  (time stamps within UNIFORM_TOL intervals of a grid)
@@ -54,7 +55,7 @@ RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's s
 # instead of the protocol's own rate: a dyno export is logged at whatever rate the dyno's software was set to
 MIN_RATE = {"dyno": 100.0}
 # channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
-EXCITED = {"flowbench": ("flow", "dp"),
+EXCITED = {"flowbench": ("flow", "dp"), "activevalve": ("flow", "dp"),
            **{p: ("displacement", "force") for p in ("compliance", "curving", "topmount", "thermal",
                                                            "friction", "dyno")},
            **{p: ("displacement", "force", "rod acceleration") for p in ("monosine", "random", "training",

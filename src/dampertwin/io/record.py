@@ -102,7 +102,7 @@ def _spec(path: str, mtime: int, test: str) -> ProtocolSpec:
     rates, targets, confs = {}, {}, {}
     for r in build_runs(doc, 0):
         rates[r.name] = float(r.rate)
-        q = "flow" if r.configuration == "valve" else "displacement"
+        q = {"valve": "flow", "active_valve": "dp"}.get(r.configuration, "displacement")
         targets[r.name] = {q: float(np.max(np.abs(r.excitation.value)))}
         confs[r.name] = r.configuration
     return ProtocolSpec(test, doc["protocol"], path, rates, targets, confs, tuple(doc.get("valves", {}) or ()))
@@ -235,7 +235,7 @@ def _magnitude_errors(g: pd.DataFrame, label: str, targets: dict, path: str) -> 
 def _sign_errors(g: pd.DataFrame, label: str, configuration: str) -> list[str]:
     """A passive part dissipates: int F dx > 0 (damper, friction), F in phase with x
     (top mount), int dp q dt > 0 (valve). A clear opposite sign is a flipped channel."""
-    if configuration == "valve":
+    if configuration in ("valve", "active_valve"):
         if "dp [Pa]" not in g or "flow [m^3/s]" not in g:
             return []
         p, q = g["dp [Pa]"].to_numpy(float), g["flow [m^3/s]"].to_numpy(float)

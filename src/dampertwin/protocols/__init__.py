@@ -46,6 +46,8 @@ class Run:
 _SCHEMA: dict[str, dict[str, Any]] = {
     "flowbench": {"configuration": "valve", "valves": dict, "ramp_time": float, "cycles": int, "rate": float,
                   "back_pressure": float, "volume": float},
+    "activevalve": {"configuration": "active_valve", "currents": list, "dp_max": float, "ramp_time": float,
+                    "cycles": int, "rate": float, "back_pressure": float},
     "compliance": {"configuration": "damper", "amplitude": float, "velocities": list, "cycles": int,
                    "current": float, "rate": float},
     "topmount": {"configuration": "topmount", "static": dict, "random": dict, "sweep": dict, "rate": float},
@@ -158,7 +160,10 @@ def load_protocol(path: str | Path) -> dict:
 # ------------------------------------------------------------ builders
 def flow_bench(c: dict) -> dict:
     """``simulate(..., bench=)`` of a flow-bench protocol: its volume [m^3]
-    and back pressure [Pa] (the lab, the plots and the discrepancy workflow)."""
+    and back pressure [Pa] (the lab, the plots and the discrepancy workflow);
+    of the active-valve bench: its back pressure."""
+    if c["protocol"] == "activevalve":
+        return {"bench_back_pressure": float(c["back_pressure"])}
     return {"bench_volume": float(c["volume"]), "bench_back_pressure": float(c["back_pressure"])}
 
 
@@ -169,6 +174,18 @@ def _flowbench(c, seed):
         runs.append(Run("flowbench", valve, "valve", ex, 0.0, c["rate"], valve,
                         {"q_max [m^3/s]": v["q_max"], "ramp_time [s]": c["ramp_time"],
                          "back_pressure [Pa]": c["back_pressure"], "volume [m^3]": c["volume"]}))
+    return runs
+
+
+def _activevalve(c, seed):
+    """Active-valve bench: per current, ``cycles`` triangles of the pressure drop 0 -> dp_max -> 0 [Pa]
+    (a pressure-controlled bench; the flow through the valve is measured)."""
+    runs = []
+    for I in c["currents"]:
+        ex = replace(triangle_ramps(c["dp_max"], c["ramp_time"], c["cycles"], sample_rate=1000.0), kind="pressure")
+        runs.append(Run("activevalve", f"I{I:g}", "active_valve", ex, float(I), c["rate"], None,
+                        {"dp_max [Pa]": c["dp_max"], "ramp_time [s]": c["ramp_time"],
+                         "back_pressure [Pa]": c["back_pressure"]}))
     return runs
 
 
@@ -269,7 +286,7 @@ def _dyno(c, seed):
 
 
 _BUILDERS: dict[str, Callable] = {
-    "flowbench": _flowbench, "compliance": _compliance, "topmount": _topmount, "curving": _curving,
+    "flowbench": _flowbench, "activevalve": _activevalve, "compliance": _compliance, "topmount": _topmount, "curving": _curving,
     "monosine": _monosine, "random": _random, "training": _training, "verification": _verification,
     "thermal": _thermal, "friction": _friction, "dyno": _dyno,
 }

@@ -1,0 +1,91 @@
+"""The active valve's own P/Q map (no. 52) from an active-valve bench record
+(conf/test/activevalve.yaml), in place of the supplier's datasheet map.
+
+The thesis takes the map from the supplier (fig. 6.2): a measurement of *a*
+valve of the type, not of the part in the damper. A record of the part's
+valve on a pressure bench gives, per current, the flow at each pressure drop;
+the map is that characteristic on the design map's grid (its currents and
+pressure drops), so the model's bilinear interpolation (errata 30) is
+unchanged. Non-parametric: no valve model is assumed between the grid points.
+
+Per current run: the flow against the pressure drop, up and down ramps
+together (their spool lag and the transducers' phase average out), as the
+monotone least-squares fit (isotonic regression, scipy) of the flow rising
+with the pressure drop, read at the grid's pressure drops. Then the two
+orderings the map reader requires (pqmap._read_map): the flow rises strictly
+with the pressure drop (``MIN_STEP`` between grid points where noise leaves a
+plateau) and does not rise with the current (the elementwise minimum over
+the lower currents' rows: more current, more restriction).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import isotonic_regression
+
+from ..design.pqmap import PQMap
+from ..errors import UserError
+
+CURRENT_TOL = 0.05   # [A] a run's current against the map's grid current it stands for
+MIN_STEP = 1.0e-12   # [m^3/s] (6e-8 l/min) least flow step between two grid pressure drops: far below any sensor
+MIN_SAMPLES = 50     # samples per run at and above the grid's smallest nonzero pressure drop
+
+
+class MapRecordError(UserError):
+    """An active-valve bench record cannot give the map (names the record and run)."""
+
+
+def _run_curve(dp: np.ndarray, q: np.ndarray, grid_dp: np.ndarray, label: str) -> np.ndarray:
+    """Flow [m^3/s] at ``grid_dp`` [Pa] from one run's samples (monotone fit, see the module)."""
+    ok = dp >= 0.0
+    if np.count_nonzero(ok & (dp >= grid_dp[1])) < MIN_SAMPLES:
+        raise MapRecordError(f"{label}: fewer than {MIN_SAMPLES} samples at or above the map's smallest pressure "
+                             f"drop {grid_dp[1]:.4g} Pa; expected a ramp over the whole map")
+    top = float(np.max(dp[ok]))
+    if top < grid_dp[-1]:
+        raise MapRecordError(f"{label}: the pressure drop reaches {top / 1e5:.4g} bar; the design's map grid goes to "
+                             f"{grid_dp[-1] / 1e5:.4g} bar: measure up to at least that (no extrapolation)")
+    order = np.argsort(dp[ok], kind="stable")
+    x, y = dp[ok][order], q[ok][order]
+    fit = isotonic_regression(y, increasing=True).x
+    out = np.interp(grid_dp, x, fit)
+    out[0] = 0.0  # no flow without a pressure drop (the map's odd extension)
+    return out
+
+
+def map_from_record(record: pd.DataFrame, grid: PQMap, where: str) -> PQMap:
+    """The part's P/Q map on ``grid``'s currents [A] and pressure drops [Pa]
+    from an active-valve bench ``record`` (run, dp [Pa], flow [m^3/s],
+    current [A]; io.read_record checked it). Every grid current needs a run
+    within CURRENT_TOL. ``where`` names the record in errors."""
+    runs = {str(k): g for k, g in record.groupby("run", sort=False)}
+    mean_i = {k: float(g["current [A]"].mean()) for k, g in runs.items()}
+    rows = []
+    for c in grid.currents:
+        near = [k for k, i in mean_i.items() if abs(i - c) <= CURRENT_TOL]
+        if not near:
+            have = ", ".join(f"{k} ({i:.3g} A)" for k, i in mean_i.items())
+            raise MapRecordError(f"{where}: no run at the map's current {c:g} A (within {CURRENT_TOL} A); the "
+                                 f"record has {have}; expected one run per current of the design's map")
+        g = runs[min(near, key=lambda k: abs(mean_i[k] - c))]
+        rows.append(_run_curve(g["dp [Pa]"].to_numpy(float), g["flow [m^3/s]"].to_numpy(float), grid.dps,
+                               f"{where} run {g['run'].iloc[0]!r}"))
+    flow = np.array(rows)
+    for j in range(1, flow.shape[1]):  # strictly rising with the pressure drop
+        flow[:, j] = np.maximum(flow[:, j], flow[:, j - 1] + MIN_STEP)
+    flow = np.minimum.accumulate(flow, axis=0)  # not rising with the current
+    return PQMap(grid.currents, grid.dps, flow)
+
+
+def map_change(fitted: PQMap, datasheet: PQMap) -> dict:
+    """How far the part's map lies from the datasheet's: per current [A], the
+    largest flow difference [m^3/s] over the grid, the pressure drop [Pa]
+    where it is and the difference relative to the datasheet's flow there."""
+    out = {}
+    for i, c in enumerate(fitted.currents):
+        diff = fitted.flow[i] - datasheet.flow[i]
+        j = int(np.argmax(np.abs(diff)))
+        out[f"{c:g}"] = {"largest_change [m^3/s]": float(diff[j]), "at_dp [Pa]": float(fitted.dps[j]),
+                         "relative": float(diff[j] / datasheet.flow[i, j]) if datasheet.flow[i, j] > 0 else None}
+    return out
