@@ -66,6 +66,29 @@ def pq_figure(measured: dict[str, pd.DataFrame], simulated: dict[str, pd.DataFra
     return fig
 
 
+def active_valve_map_figure(measured: pd.DataFrame, built, datasheet, title: str):
+    """The active valve on its bench, one panel per current [A]: the record (flow against the pressure drop),
+    the map built from it and the datasheet map (both on the map's grid)."""
+    n = len(built.currents)
+    ncol = min(n, 3)
+    nrow = (n + ncol - 1) // ncol
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.6 * nrow + 0.6), constrained_layout=True,
+                             squeeze=False)
+    for ax in axes.flat[n:]:
+        ax.remove()
+    runs = {str(k): g for k, g in measured.groupby("run", sort=False)}
+    for i, (ax, c) in enumerate(zip(axes.flat, built.currents)):
+        g = min(runs.values(), key=lambda g: abs(float(g["current [A]"].mean()) - c))
+        ax.plot(g["flow [m^3/s]"] * LPM, g["dp [Pa]"] / 1e5, ",", color="0.6", label="record")
+        ax.plot(built.flow[i] * LPM, built.dps / 1e5, "o-", ms=3, color="tab:red", label="map from the record")
+        ax.plot(datasheet.flow[i] * LPM, datasheet.dps / 1e5, "s--", ms=3, color="tab:blue", label="datasheet map")
+        ax.set(title=f"{c:g} A", xlabel="flow [l/min]", ylabel="pressure drop [bar]")
+        ax.grid(alpha=0.3)
+        _legend(ax, fontsize=7)
+    fig.suptitle(fit_title(title, 4.2 * ncol, 11), fontsize=11)
+    return fig
+
+
 def curving_figure(results: dict[float, list[tuple[str, pd.DataFrame]]], measured: pd.DataFrame | None, title: str):
     """Force-velocity (peak points) and force-displacement loops at each current."""
     fig, (ax_v, ax_x) = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
