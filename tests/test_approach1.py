@@ -143,6 +143,25 @@ def test_every_fit_beats_the_uncalibrated_design(ci_study):
 
 
 @pytest.mark.slow  # runs the ci-profile pipeline (minutes)
+def test_the_part_active_valve_map_is_a_design_input(ci_study, tmp_path):
+    """activevalve_map: map.csv is a map a design loads (on the datasheet's grid, other flows), map.json names
+    the record relative to the study (same bytes in every clone) and the largest change per map current."""
+    from dampertwin.design import load
+
+    repo, *_ = ci_study
+    out = repo / "results" / "approach1" / "activevalve"
+    doc = json.loads((out / "map.json").read_text())
+    assert doc["record"] == "data/measured/activevalve/baseline.parquet" and doc["synthetic"] is True
+    base = load(BASELINE)
+    assert set(doc["change_from_datasheet"]) == {f"{c:g}" for c in base.pq_map.currents}
+    shutil.copy(out / "map.csv", tmp_path / "own.csv")
+    base.dump(tmp_path / "d.yaml")
+    own = load(tmp_path / "d.yaml", map_dirs=[BASELINE.parent]).with_overrides({"active_valve.pq_map": "own.csv"})
+    assert np.array_equal(own.pq_map.dps, base.pq_map.dps) and not np.array_equal(own.pq_map.flow, base.pq_map.flow)
+    assert (out / "pq.png").stat().st_size > 10_000
+
+
+@pytest.mark.slow  # runs the ci-profile pipeline (minutes)
 def test_lab_regenerates_the_committed_data_bit_for_bit(ci_study):
     """The copy ran `dvc repro` without data/measured: the lab stage it ran
     must give the output hash committed in dvc.lock (deterministic lab, and
