@@ -277,6 +277,17 @@ def approach1_design(conf: Path, data: Path, seed: int, out: Path) -> Path:
         res = fit_valve(base, v, meas, cal, GASettings.from_config(prof.ga.valves), seed + k, bench=bench,
                         progress=False, polish_settings=PolishSettings.from_config(prof.polish, "valves"))
         d = d.with_overrides(res.best)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "start_design.yaml"
+    rec = data / "activevalve" / "baseline.parquet"
+    if rec.is_file():  # before the compliance fit: its test runs through the active valve
+        from dampertwin.calibration.active_valve_map import map_from_record
+        from dampertwin.design import write_map
+
+        meas, _ = read_record(rec, "activevalve", conf=conf)
+        write_map(out / MEASURED_MAP, map_from_record(meas, d.pq_map, str(rec))[0])
+        d.dump(path)
+        d = load(path, map_dirs=[conf / "design"]).with_overrides({"active_valve.pq_map": MEASURED_MAP})
     keep = lambda b: {k: x for k, x in b.items() if not k.startswith("sensor.")}  # noqa: E731 (nuisance keys)
     bw = load_protocol(conf / "test" / "compliance.yaml").get("sensors", {}).get("force")
     meas, _ = read_record(data / "compliance" / "baseline.parquet", "compliance", conf=conf)
@@ -290,17 +301,7 @@ def approach1_design(conf: Path, data: Path, seed: int, out: Path) -> Path:
                                  GASettings.from_config(prof.ga.topmount), seed + 5, progress=False,
                                  polish_settings=pol, force_bandwidth=bw)
     d = d.with_overrides({**keep(res.best), "top_mount.F_LD": coef})
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "start_design.yaml"
     d.dump(path)
-    rec = data / "activevalve" / "baseline.parquet"
-    if rec.is_file():
-        from dampertwin.calibration.active_valve_map import map_from_record
-        from dampertwin.design import write_map
-
-        meas, _ = read_record(rec, "activevalve", conf=conf)
-        write_map(out / MEASURED_MAP, map_from_record(meas, d.pq_map, str(rec)))
-        load(path, map_dirs=[conf / "design"]).with_overrides({"active_valve.pq_map": MEASURED_MAP}).dump(path)
     return path
 
 

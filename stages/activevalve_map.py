@@ -22,7 +22,7 @@ def main() -> None:
     path = measured_dir() / "activevalve" / "baseline.parquet"
     name = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
     meas, meta = read_record(path, "activevalve", conf=CONF)
-    built = map_from_record(meas, d.pq_map, name)
+    built, moved = map_from_record(meas, d.pq_map, name)
     with staged_dir(OUT / "activevalve") as tmp:  # all outputs or none
         write_map(tmp / "map.csv", built)
         write_json(tmp / "map.json", {
@@ -30,7 +30,7 @@ def main() -> None:
             "datasheet": d["active_valve.pq_map"],
             "note": "the part's active valve on its bench (map.csv, on the datasheet map's grid) against the "
                     "datasheet map the study's designs use; a design uses map.csv when its no. 52 names it",
-            "change_from_datasheet": map_change(built, d.pq_map)})
+            "change_from_datasheet": map_change(built, d.pq_map, moved)})
         fig = report.active_valve_map_figure(meas, built, d.pq_map, "active valve: the part on its bench vs its "
                                              "datasheet map")
         fig.savefig(tmp / "pq.png", dpi=100)

@@ -46,7 +46,7 @@ def test_a_known_valve_is_recovered_through_lag_and_noise(design):
     and 0.5 l/min of flow noise, gives that valve's map on the design's grid, not the design's map."""
     other = load(CONF / "design" / "baseline.yaml").with_overrides(
         {"active_valve.pq_map": "active_valve_alternative.csv"}).pq_map
-    got = map_from_record(_record(other, lag=0.02, noise=0.5), design.pq_map, "rec")
+    got, moved = map_from_record(_record(other, lag=0.02, noise=0.5), design.pq_map, "rec")
     truth = np.array([[_bilinear(other, c, dp) for dp in design.pq_map.dps] for c in design.pq_map.currents])
     err = np.abs(got.flow - truth) * LPM
     assert err.max() < 1.5, err.max()  # l/min, on flows up to ~600 l/min; the datasheet map is far off:
@@ -55,9 +55,26 @@ def test_a_known_valve_is_recovered_through_lag_and_noise(design):
     assert np.array_equal(got.currents, design.pq_map.currents) and np.array_equal(got.dps, design.pq_map.dps)
 
 
+def test_crossing_curves_are_pooled_not_cut(design):
+    """Where the 0.9 A curve runs above the 0.6 A one (it may not: more current, more restriction), the
+    orderings meet both halfway (least squares), not by lowering the higher current's curve alone, and say
+    how far they moved each curve."""
+    pq = design.pq_map
+    rec = _record(pq)
+    sel = rec["run"] == "I0.9"  # the 0.9 A run passes 2 % more than the 0.6 A curve at every pressure drop
+    rec.loc[sel, "flow [m^3/s]"] = 1.02 * _bilinear(pq, 0.6, rec.loc[sel, "dp [Pa]"].clip(lower=0.0))
+    got, moved = map_from_record(rec, pq, "rec")
+    j = np.searchsorted(pq.dps, 3.0e6)  # 30 bar
+    for k in (j, len(pq.dps) - 1):
+        assert got.flow[1, k] == pytest.approx(got.flow[2, k], rel=1e-9)
+        assert got.flow[1, k] == pytest.approx(1.01 * pq.flow[1, k], rel=1e-6)
+    assert moved[1] == pytest.approx(moved[2], rel=1e-6) == pytest.approx(0.01 * pq.flow[1, -1], rel=1e-6)
+    assert moved[3] == moved[4] == 0.0
+
+
 def test_the_map_loads_into_a_design(design, tmp_path):
     """The written map passes the design's map reader (full grid, flow 0 at dp 0, monotone orderings)."""
-    got = map_from_record(_record(design.pq_map, noise=2.0, seed=3), design.pq_map, "rec")
+    got, _ = map_from_record(_record(design.pq_map, noise=2.0, seed=3), design.pq_map, "rec")
     write_map(tmp_path / "own.csv", got)
     design.dump(tmp_path / "d.yaml")
     d = load(tmp_path / "d.yaml", map_dirs=[CONF / "design"]).with_overrides({"active_valve.pq_map": "own.csv"})
@@ -86,7 +103,8 @@ def test_the_lab_part_valve_is_measured_closer_than_its_datasheet(design):
     sample = load_sample(CONF / "lab" / "sample.yaml")
     rec, meta = measure_case(CONF, sample, nominal, "activevalve", "baseline", 0)
     assert meta["synthetic"] is True and meta["protocol"] == "activevalve"
-    got = map_from_record(rec, design.pq_map, "lab")
+    got, moved = map_from_record(rec, design.pq_map, "lab")
+    assert moved.max() * LPM < 1.0  # the orderings hardly touch the measured curves
     p, rest = truth_part(nominal, nominal, sample)
     g = design.pq_map
     for i in (0, 4):
@@ -107,5 +125,21 @@ def test_the_reader_checks_an_active_valve_record(design, tmp_path):
     assert len(check_record(rec, {"protocol": "activevalve"}, "rec", "activevalve", conf=CONF)) == len(rec)
     with pytest.raises(DataError, match="dp or flow sign flipped"):
         check_record(rec.assign(**{"flow [m^3/s]": -rec["flow [m^3/s]"]}), {}, "rec", "activevalve", conf=CONF)
-    with pytest.raises(DataError, match="run 'I0.32'.*current"):
-        check_record(rec.assign(**{"current [A]": rec["current [A]"] * 1000}), {}, "rec", "activevalve", conf=CONF)
+    swapped = rec.copy()  # run I0.6 driven at 0.9 A
+    swapped.loc[swapped["run"] == "I0.6", "current [A]"] = 0.9
+    with pytest.raises(DataError, match="run 'I0.6'.*averages 0.9 A where the run label names 0.6 A"):
+        check_record(swapped, {}, "rec", "activevalve", conf=CONF)
+
+
+def test_the_model_and_a_lab2_part_refuse_the_bench(tmp_path):
+    """The model's active valve is its map: `simulate --test activevalve` says so; a lab-2 part has no valve
+    of its own: `lab --tests activevalve` says so (neither writes anything)."""
+    from dampertwin.errors import UserError
+    from dampertwin.lab import LabError, run_lab
+    from dampertwin.simulate_test import simulate_test
+
+    with pytest.raises(UserError, match="active valve is its P/Q map"):
+        simulate_test(CONF / "design" / "baseline.yaml", "activevalve", tmp_path / "s", conf=CONF)
+    with pytest.raises(LabError, match="lab-2 sample.*no solenoid valve"):
+        run_lab(CONF / "lab" / "lab2" / "sample.yaml", tmp_path / "l", tests=["activevalve"], conf=CONF)
+    assert not (tmp_path / "s").exists() and not (tmp_path / "l").exists()

@@ -241,6 +241,9 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
     items = plan(conf, protocols, getattr(nominal, "architecture", DEFAULT_ARCHITECTURE)) if only is None else list(only)
     if only is None and not is_truth_sample(sample_doc):  # a lab-2 part has no solenoid valve of its own
         items = [it for it in items if it[0] != "activevalve"]
+    if tests is not None and "activevalve" in tests and not is_truth_sample(sample_doc):
+        raise LabError(f"--tests activevalve: {sample} is a lab-2 sample, whose part has no solenoid valve of its "
+                       f"own (the model's P/Q map); the active-valve bench runs on a lab-3 sample")
     if tests is not None:
         known = sorted({t for t, _ in items})
         unknown = [t for t in tests if t not in known]

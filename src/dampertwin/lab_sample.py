@@ -257,7 +257,7 @@ def check_sample(sample: dict, nominal: Design) -> None:
         raise LabError(f"{where}: the real part is not a valid design: {e}") from None
 
 
-RECORDED = {"valve": ("flow [m^3/s]", "dp [Pa]"), "damper": ("displacement [m]", "force [N]", TEMPERATURE),
+RECORDED = {"valve": ("flow [m^3/s]", "dp [Pa]"), "active_valve": ("flow [m^3/s]", "dp [Pa]"), "damper": ("displacement [m]", "force [N]", TEMPERATURE),
             "topmount": ("displacement [m]", "force [N]"),
             "module": ("displacement [m]", "force [N]", "rod acceleration [m/s^2]")}
 

@@ -85,6 +85,9 @@ def simulate_test(design_path: str | Path, test: str, out: str | Path, *, case: 
         raise UserError(f"--test {test}: {proto_path} not found; expected one of: {known}")
     if current is not None and not np.isfinite(current):
         raise UserError(f"--current {current}: expected a finite current in A")
+    if test == "activevalve":
+        raise UserError(f"--test {test}: the model's active valve is its P/Q map (design no. 52), not a valve to "
+                        f"put on a bench; a record of the test builds the part's map (stage activevalve_map)")
     design = load_design(design_path)
     protocol = load_protocol(proto_path)
     frames = [_run_frame(design, r, protocol) for r in runs_for_design(design, select_runs(protocol, test, case, current),

@@ -12,10 +12,13 @@ Per current run: the flow against the pressure drop, up and down ramps
 together (their spool lag and the transducers' phase average out), as the
 monotone least-squares fit (isotonic regression, scipy) of the flow rising
 with the pressure drop, read at the grid's pressure drops. Then the two
-orderings the map reader requires (pqmap._read_map): the flow rises strictly
-with the pressure drop (``MIN_STEP`` between grid points where noise leaves a
-plateau) and does not rise with the current (the elementwise minimum over
-the lower currents' rows: more current, more restriction).
+orderings the map reader requires (pqmap._read_map), by alternating
+projections until both hold: at each pressure drop the flow does not rise
+with the current (more current, more restriction; the monotone least-squares
+fit across the currents, which pools crossing curves symmetrically), and at
+each current it rises strictly with the pressure drop (``MIN_STEP`` between
+grid points where noise leaves a plateau). How far this moved each current's
+curve is returned with the map (stage activevalve_map writes it).
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from ..errors import UserError
 CURRENT_TOL = 0.05   # [A] a run's current against the map's grid current it stands for
 MIN_STEP = 1.0e-12   # [m^3/s] (6e-8 l/min) least flow step between two grid pressure drops: far below any sensor
 MIN_SAMPLES = 50     # samples per run at and above the grid's smallest nonzero pressure drop
+MAX_PASSES = 100     # alternating projections onto the two orderings before the record is refused
 
 
 class MapRecordError(UserError):
@@ -54,11 +58,26 @@ def _run_curve(dp: np.ndarray, q: np.ndarray, grid_dp: np.ndarray, label: str) -
     return out
 
 
-def map_from_record(record: pd.DataFrame, grid: PQMap, where: str) -> PQMap:
+def _orderings(flow: np.ndarray, where: str) -> np.ndarray:
+    """``flow`` [current, dp] [m^3/s] moved onto the map's orderings (see the module)."""
+    f = flow.copy()
+    for _ in range(MAX_PASSES):
+        for j in range(1, f.shape[1]):  # not rising with the current
+            f[:, j] = isotonic_regression(f[:, j], increasing=False).x
+        for j in range(1, f.shape[1]):  # strictly rising with the pressure drop
+            f[:, j] = np.maximum(f[:, j], f[:, j - 1] + MIN_STEP)
+        if np.all(np.diff(f, axis=0) <= 0):
+            return f
+    raise MapRecordError(f"{where}: the runs' curves cannot be ordered (flow falling with the current, rising with "
+                         f"the pressure drop) in {MAX_PASSES} passes; expected a valve whose flow the current lowers")
+
+
+def map_from_record(record: pd.DataFrame, grid: PQMap, where: str) -> tuple[PQMap, np.ndarray]:
     """The part's P/Q map on ``grid``'s currents [A] and pressure drops [Pa]
     from an active-valve bench ``record`` (run, dp [Pa], flow [m^3/s],
-    current [A]; io.read_record checked it). Every grid current needs a run
-    within CURRENT_TOL. ``where`` names the record in errors."""
+    current [A]; io.read_record checked it), and per current the largest
+    flow change [m^3/s] the orderings made to its fitted curve. Every grid
+    current needs a run within CURRENT_TOL. ``where`` names the record in errors."""
     runs = {str(k): g for k, g in record.groupby("run", sort=False)}
     mean_i = {k: float(g["current [A]"].mean()) for k, g in runs.items()}
     rows = []
@@ -71,21 +90,23 @@ def map_from_record(record: pd.DataFrame, grid: PQMap, where: str) -> PQMap:
         g = runs[min(near, key=lambda k: abs(mean_i[k] - c))]
         rows.append(_run_curve(g["dp [Pa]"].to_numpy(float), g["flow [m^3/s]"].to_numpy(float), grid.dps,
                                f"{where} run {g['run'].iloc[0]!r}"))
-    flow = np.array(rows)
-    for j in range(1, flow.shape[1]):  # strictly rising with the pressure drop
-        flow[:, j] = np.maximum(flow[:, j], flow[:, j - 1] + MIN_STEP)
-    flow = np.minimum.accumulate(flow, axis=0)  # not rising with the current
-    return PQMap(grid.currents, grid.dps, flow)
+    fitted = np.array(rows)
+    flow = _orderings(fitted, where)
+    return PQMap(grid.currents, grid.dps, flow), np.max(np.abs(flow - fitted), axis=1)
 
 
-def map_change(fitted: PQMap, datasheet: PQMap) -> dict:
+def map_change(fitted: PQMap, datasheet: PQMap, ordered: np.ndarray | None = None) -> dict:
     """How far the part's map lies from the datasheet's: per current [A], the
     largest flow difference [m^3/s] over the grid, the pressure drop [Pa]
-    where it is and the difference relative to the datasheet's flow there."""
+    where it is and the difference relative to the datasheet's flow there;
+    with ``ordered`` (map_from_record's second result), how far the
+    orderings moved the current's curve [m^3/s]."""
     out = {}
     for i, c in enumerate(fitted.currents):
         diff = fitted.flow[i] - datasheet.flow[i]
         j = int(np.argmax(np.abs(diff)))
         out[f"{c:g}"] = {"largest_change [m^3/s]": float(diff[j]), "at_dp [Pa]": float(fitted.dps[j]),
                          "relative": float(diff[j] / datasheet.flow[i, j]) if datasheet.flow[i, j] > 0 else None}
+        if ordered is not None:
+            out[f"{c:g}"]["moved_by_orderings [m^3/s]"] = float(ordered[i])
     return out
