@@ -143,3 +143,75 @@ def test_the_model_and_a_lab2_part_refuse_the_bench(tmp_path):
     with pytest.raises(LabError, match="lab-2 sample.*no solenoid valve"):
         run_lab(CONF / "lab" / "lab2" / "sample.yaml", tmp_path / "l", tests=["activevalve"], conf=CONF)
     assert not (tmp_path / "s").exists() and not (tmp_path / "l").exists()
+
+
+# ------------------------------------------------------------------ dampertwin fit active-valve
+def _write(tmp_path, rec, name="av.parquet"):
+    from dampertwin.io import write_frame
+
+    return write_frame(tmp_path / name, rec, {"synthetic": True, "protocol": "activevalve"})
+
+
+def test_fit_active_valve_writes_a_design_with_the_part_map(design, tmp_path, capsys):
+    """`dampertwin fit active-valve` on a record of another valve (20 ms spool lag, 0.5 l/min noise):
+    out/design.yaml is the design with that valve's map (its no. 52 names out/map.csv, source 'measured'),
+    fit.json says how far it lies from the design's map, the plot is written and nothing is flagged."""
+    import json
+
+    from dampertwin.cli import main
+
+    other = load(CONF / "design" / "baseline.yaml").with_overrides(
+        {"active_valve.pq_map": "active_valve_alternative.csv"}).pq_map
+    data, out = _write(tmp_path, _record(other, lag=0.02, noise=0.5)), tmp_path / "o"
+    assert main(["fit", "active-valve", "--data", str(data), "--out", str(out)]) == 0
+    assert capsys.readouterr().err == ""
+    fitted = load(out / "design.yaml")
+    truth = np.array([[_bilinear(other, c, dp) for dp in design.pq_map.dps] for c in design.pq_map.currents])
+    assert np.abs(fitted.pq_map.flow - truth).max() * LPM < 1.5
+    assert fitted.param(52).value == "map.csv" and fitted.param(52).source.startswith("measured:")
+    back = load(out / "design.yaml", map_dirs=[CONF / "design"]).with_overrides(
+        {52: str(CONF / "design" / "active_valve_baseline.csv")})
+    assert back.hash() == design.hash()  # nothing else of the design changed
+    res = json.loads((out / "fit.json").read_text())
+    assert res["submodel"] == "active-valve" and res["flags"] == [] and res["synthetic"] is True
+    assert res["files"][str(data)]["sha256"] and (out / "pq.png").stat().st_size > 10_000
+    want = map_change(fitted.pq_map, design.pq_map)
+    assert {c: v["largest_change [m^3/s]"] for c, v in res["change_from_design_map"].items()} == \
+        {c: v["largest_change [m^3/s]"] for c, v in want.items()}
+
+
+def test_fit_active_valve_flags_crossing_curves(design, tmp_path, capsys):
+    """A 0.9 A run passing 6 % more than the 0.6 A curve (a run at the wrong current?) is pooled and flagged."""
+    from dampertwin.cli import main
+
+    rec = _record(design.pq_map)
+    sel = rec["run"] == "I0.9"
+    rec.loc[sel, "flow [m^3/s]"] = 1.06 * _bilinear(design.pq_map, 0.6, rec.loc[sel, "dp [Pa]"].clip(lower=0.0))
+    assert main(["fit", "active-valve", "--data", str(_write(tmp_path, rec)), "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert "the 0.9 A curve crosses its neighbours" in err and "the 0.6 A curve crosses" in err
+    assert "0.32 A curve" not in err and "1.6 A curve" not in err
+
+
+@pytest.mark.parametrize("extra, needle", [
+    (["--seed", "3"], "--seed: an active-valve map is read off its bench record"),
+    (["--predict", "x.parquet", "--population", "4"], "--predict, --population: an active-valve map"),
+    (["--design", str(CONF / "design" / "twin_tube.yaml")], "twin_tube design has no active valve"),
+])
+def test_fit_active_valve_refuses_what_it_cannot_use(design, tmp_path, capsys, extra, needle):
+    from dampertwin.cli import main
+
+    data = _write(tmp_path, _record(design.pq_map))
+    assert main(["fit", "active-valve", "--data", str(data), "--out", str(tmp_path / "o"), *extra]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "o" / "fit.json").exists()
+
+
+def test_fit_active_valve_refuses_a_short_record_and_writes_nothing(design, tmp_path, capsys):
+    from dampertwin.cli import main
+
+    data = _write(tmp_path, _record(design.pq_map, dp_scale=0.8))
+    assert main(["fit", "active-valve", "--data", str(data), "--out", str(tmp_path / "o")]) == 2
+    assert "reaches 128 bar; the design's map grid goes to 150 bar" in capsys.readouterr().err
+    assert not (tmp_path / "o" / "fit.json").exists() and not (tmp_path / "o" / "design.yaml").exists()

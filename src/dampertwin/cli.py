@@ -285,9 +285,9 @@ def _add_import_fit(sub) -> None:
     imp.add_argument("--map", required=True, dest="mapping", help="column mapping YAML (quantity + unit per column)")
     imp.add_argument("--out", required=True, help="output Parquet, e.g. data/own/monosine/baseline_1.6.parquet")
     imp.add_argument("--protocol", help="test schema to check (default: the mapping's or the output folder name)")
-    fit = sub.add_parser("fit", help="fit one submodel on a bench record: valve | compliance | topmount | friction; "
-                                     "or the whole damper on dyno records: damper")
-    fit.add_argument("submodel", choices=("valve", "compliance", "topmount", "friction", "damper"))
+    fit = sub.add_parser("fit", help="fit one submodel on a bench record: valve | compliance | topmount | friction | "
+                                     "active-valve (the part's P/Q map); or the whole damper on dyno records: damper")
+    fit.add_argument("submodel", choices=("valve", "compliance", "topmount", "friction", "damper", "active-valve"))
     fit.add_argument("--data", required=True, help="the record to fit (Parquet or CSV, project schema); damper: "
                                                    "a comma-separated list a.parquet,b.parquet (each at the clicker "
                                                    "setting its metadata names)")

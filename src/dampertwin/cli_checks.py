@@ -52,7 +52,7 @@ def check_current(value, design_path) -> None:
 
 # the test whose records each `fit` submodel reads (friction: also a device record without protocol)
 FIT_PROTOCOLS = {"valve": ("flowbench",), "compliance": ("compliance",), "topmount": ("topmount",),
-                 "friction": ("friction", None),
+                 "friction": ("friction", None), "active-valve": ("activevalve",),
                  "damper": ("dyno", "curving", "compliance", "thermal", None)}  # damper-level: displacement in, force out
 
 
@@ -70,7 +70,8 @@ def check_fit_records(submodel: str, paths) -> None:
         except Exception:  # unreadable: the reader reports it
             continue
         if isinstance(proto, str) and proto not in want:
-            raise ArgumentError(f"{p}: a {proto} record (its metadata); a {submodel} fit reads "
+            article = "an" if submodel[0] in "aeiou" else "a"
+            raise ArgumentError(f"{p}: a {proto} record (its metadata); {article} {submodel} fit reads "
                                 f"{' or '.join(w for w in want if w)} records")
 
 

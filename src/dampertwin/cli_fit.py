@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .design import yaml_load
 from .calibration.ga import FitError
-from .cli_fit_files import fit_compliance, fit_damper, fit_friction, fit_topmount, fit_valve
+from .cli_fit_files import fit_active_valve, fit_compliance, fit_damper, fit_friction, fit_topmount, fit_valve
 
 
 def parse_param_args(items: list[str]) -> list[dict]:
@@ -142,9 +142,26 @@ def _items_source(cfg: dict, params) -> str:
     return " + ".join(x for x in src if x) or "friction search space"
 
 
+# options of the searched fits; an active-valve map is read off its record (no search, no budget, no seed)
+SEARCH_OPTIONS = {"predict": [], "bounds": None, "param": [], "valve": None, "current": None, "population": None,
+                  "generations": None, "seed": 0, "profile": None, "scheduler": None, "effect": [],
+                  "holdout_cycles": None}
+
+
+def _fit_active_valve(args) -> list[str]:
+    """``dampertwin fit active-valve``: refuses the search options, returns the map's flags."""
+    given = [k for k, default in SEARCH_OPTIONS.items() if getattr(args, k, default) != default]
+    if given:
+        raise FitError(f"{', '.join('--' + k.replace('_', '-') for k in given)}: an active-valve map is read off its "
+                       f"bench record on the design's grid (no search); give --data, --design and --out only")
+    return list(fit_active_valve(args.data, design=args.design, out=args.out)["flags"])
+
+
 def run_fit_cli(args) -> tuple[Path, list[str]]:
     """``dampertwin fit`` entry: returns the written fit.json path and the
     fit's flags (parameters on a bound, unsupported effects)."""
+    if args.submodel == "active-valve":
+        return Path(args.out) / "fit.json", _fit_active_valve(args)
     cfg = load_search_config(args.bounds, args.submodel)
     if args.bounds:
         cfg["_where"] = str(args.bounds)

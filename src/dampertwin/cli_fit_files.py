@@ -229,8 +229,6 @@ def fit_friction(data, *, design: Design | str | os.PathLike | None = None, boun
     return result
 
 
-
-
 def fit_damper(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0, population=None,
                generations=None, scheduler=None) -> dict:
     """Fit the valves' and the gas's parameters on damper / dyno records (``data``: one path or a list, each
@@ -254,4 +252,67 @@ def fit_damper(data, *, design=None, bounds=None, predict=(), out=None, config=N
     return result
 
 
-__all__ = ["read_fit_record", "fit_valve", "fit_compliance", "fit_topmount", "fit_friction", "fit_damper"]
+ORDER_FLAG = 0.02  # a curve the map's orderings moved by more than this share of its top flow is flagged
+
+
+def _design_with_map(d: Design, out: Path, record: str, sha: str) -> Path:
+    """``out/design.yaml``: the design with no. 52 naming ``out/map.csv`` (its source line says how it was found)."""
+    import yaml
+
+    from .design import loads
+
+    doc = yaml.safe_load(d.dumps(out.resolve()))
+    for p in doc["parameters"]:
+        if p["no"] == 52:
+            p["value"] = "map.csv"
+            p["source"] = (f"measured: the part's valve on its active-valve bench, {record} (sha256 {sha[:16]}), "
+                           f"by dampertwin fit active-valve on the grid of {d.path or 'the design'}")
+    return loads(yaml.safe_dump(doc, sort_keys=False), base_dir=out, where=str(out / "design.yaml")).dump(
+        out / "design.yaml")
+
+
+def fit_active_valve(data, *, design=None, out=None) -> dict:
+    """The part's active-valve P/Q map (no. 52) from its active-valve bench record
+    (conf/test/activevalve.yaml; :mod:`dampertwin.calibration.active_valve_map`) on the
+    design's map grid. With ``out``: map.csv, pq.png, design.yaml (the design with no. 52
+    naming map.csv) and fit.json (how far the part lies from the design's map per current)."""
+    import matplotlib.pyplot as plt
+
+    from . import report
+    from .calibration.active_valve_map import map_change, map_from_record
+    from .design import write_map
+    from .io import read_record
+
+    d = _load(design)
+    if d.pq_map is None:
+        raise FitError(f"{d.path or 'design'}: a {d.architecture} design has no active valve (no P/Q map, no. 52); "
+                       f"an active-valve fit needs a design with one")
+    path = Path(data)
+    meas, meta = read_record(path, "activevalve")
+    built, moved = map_from_record(meas, d.pq_map, str(path))
+    top = built.flow.max(axis=1)
+    result = {"submodel": "active-valve", "design": str(d.path) if d.path else None, "design_hash": d.hash(),
+              "synthetic": bool(meta.get("synthetic", False)),
+              "method": "per current: isotonic least squares of flow on dp (up and down ramps together) read at "
+                        "the design's grid; then the map's orderings by alternating least-squares projections",
+              "grid": {"currents [A]": [float(c) for c in built.currents], "dp [Pa]": [float(p) for p in built.dps]},
+              "outputs": {"map": "map.csv", "design": "design.yaml", "plot": "pq.png"},
+              "change_from_design_map": map_change(built, d.pq_map, moved),
+              "flags": [f"the {c:g} A curve crosses its neighbours: the map's orderings moved it by "
+                        f"{m * 6e4:.3g} l/min ({m / t:.1%} of its top flow); check the run's current"
+                        for c, m, t in zip(built.currents, moved, top) if m > ORDER_FLAG * t],
+              "files": {str(path): {"role": "fitted", "runs": int(meas["run"].nunique()), "samples": len(meas)}}}
+
+    def outputs(o: Path) -> None:
+        write_map(o / "map.csv", built)
+        _design_with_map(d, o, str(path), _sha(path))
+        fig = report.active_valve_map_figure(meas, built, d.pq_map, f"active valve: {path.name} vs the design's map")
+        fig.savefig(o / "pq.png", dpi=100)
+        plt.close(fig)
+
+    _with_shas(result, out, outputs)
+    return result
+
+
+__all__ = ["read_fit_record", "fit_valve", "fit_compliance", "fit_topmount", "fit_friction", "fit_damper",
+           "fit_active_valve"]

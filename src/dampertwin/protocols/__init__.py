@@ -286,8 +286,8 @@ def _dyno(c, seed):
 
 
 _BUILDERS: dict[str, Callable] = {
-    "flowbench": _flowbench, "activevalve": _activevalve, "compliance": _compliance, "topmount": _topmount, "curving": _curving,
-    "monosine": _monosine, "random": _random, "training": _training, "verification": _verification,
+    "flowbench": _flowbench, "activevalve": _activevalve, "compliance": _compliance, "topmount": _topmount,
+    "curving": _curving, "monosine": _monosine, "random": _random, "training": _training, "verification": _verification,
     "thermal": _thermal, "friction": _friction, "dyno": _dyno,
 }
 
