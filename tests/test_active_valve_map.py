@@ -215,3 +215,22 @@ def test_fit_active_valve_refuses_a_short_record_and_writes_nothing(design, tmp_
     assert main(["fit", "active-valve", "--data", str(data), "--out", str(tmp_path / "o")]) == 2
     assert "reaches 128 bar; the design's map grid goes to 150 bar" in capsys.readouterr().err
     assert not (tmp_path / "o" / "fit.json").exists() and not (tmp_path / "o" / "design.yaml").exists()
+
+
+def test_a_bench_logging_at_its_own_rate_is_read_down_to_100_hz(design, tmp_path, capsys):
+    """A pressure bench logs at its own rate: 250 Hz gives the same map (quasi-static ramps); 50 Hz is refused
+    naming the rate; a record whose dp and flow both run negative (dp measured the other way) is refused."""
+    from dampertwin.cli import main
+
+    rec = _record(design.pq_map, noise=0.5)
+    assert main(["fit", "active-valve", "--data", str(_write(tmp_path, rec.iloc[::4], "a.parquet")),
+                 "--out", str(tmp_path / "a")]) == 0
+    assert np.abs(load(tmp_path / "a" / "design.yaml").pq_map.flow - design.pq_map.flow).max() * LPM < 1.5
+    assert main(["fit", "active-valve", "--data", str(_write(tmp_path, rec.iloc[::20], "b.parquet")),
+                 "--out", str(tmp_path / "b")]) == 2
+    assert "sampling rate 50 Hz (measured from the time stamps); an activevalve record needs >= 100 Hz" in \
+        capsys.readouterr().err
+    flipped = rec.assign(**{"dp [Pa]": -rec["dp [Pa]"], "flow [m^3/s]": -rec["flow [m^3/s]"]})
+    assert main(["fit", "active-valve", "--data", str(_write(tmp_path, flipped, "c.parquet")),
+                 "--out", str(tmp_path / "c")]) == 2
+    assert "the pressure drop is mostly negative" in capsys.readouterr().err

@@ -43,6 +43,9 @@ class MapRecordError(UserError):
 def _run_curve(dp: np.ndarray, q: np.ndarray, grid_dp: np.ndarray, label: str) -> np.ndarray:
     """Flow [m^3/s] at ``grid_dp`` [Pa] from one run's samples (monotone fit, see the module)."""
     ok = dp >= 0.0
+    if np.count_nonzero(dp < -grid_dp[1]) > np.count_nonzero(dp > grid_dp[1]):
+        raise MapRecordError(f"{label}: the pressure drop is mostly negative (flow with it); expected dp >= 0 "
+                             f"across the valve in its flow direction (both signs flipped: dp measured the other way?)")
     if np.count_nonzero(ok & (dp >= grid_dp[1])) < MIN_SAMPLES:
         raise MapRecordError(f"{label}: fewer than {MIN_SAMPLES} samples at or above the map's smallest pressure "
                              f"drop {grid_dp[1]:.4g} Pa; expected a ramp over the whole map")

@@ -52,8 +52,9 @@ PRECHARGE_RANGE = (1.5e5, 5.0e6)  # [Pa] absolute gas precharge of a damper (0.5
 MAX_FILE_MB = 64.0  # [MB] largest measurement file read (DAMPERTWIN_MAX_FILE_MB raises it): a junk file is refused, not parsed
 RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's still accepted
 # protocols whose records may have any sampling rate at or above this [Hz] (measured from the time column),
-# instead of the protocol's own rate: a dyno export is logged at whatever rate the dyno's software was set to
-MIN_RATE = {"dyno": 100.0}
+# instead of the protocol's own rate: a dyno export is logged at whatever rate the dyno's software was set to; a
+# pressure bench's quasi-static ramps (40 bar/s) likewise: 100 Hz is 0.4 bar between samples on the map's 25 bar steps
+MIN_RATE = {"dyno": 100.0, "activevalve": 100.0}
 # channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
 EXCITED = {"flowbench": ("flow", "dp"), "activevalve": ("flow", "dp"),
            **{p: ("displacement", "force") for p in ("compliance", "curving", "topmount", "thermal",
@@ -280,7 +281,8 @@ def check_frame(df: pd.DataFrame, meta: dict, where: str, protocol: str | None =
             fs = 1.0 / float(np.mean(dt))
             if protocol in MIN_RATE and fs < MIN_RATE[protocol]:
                 errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz (measured from the time stamps); "
-                              f"a {protocol} record needs >= {MIN_RATE[protocol]:g} Hz")
+                              f"{'an' if protocol[0] in 'aeiou' else 'a'} {protocol} record needs >= "
+                              f"{MIN_RATE[protocol]:g} Hz")
             if want is not None and abs(fs - want) > RATE_TOL * want:
                 errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz; protocol {protocol} records at "
                               f"{want:g} Hz ({_rate_hint(fs, want)})")

@@ -179,7 +179,8 @@ def _label_errors(df, meta, where, spec: ProtocolSpec, valve) -> list[str]:
     names = list(spec.rates)
     example = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
     if "run" not in df:
-        errors.append(f"{where}: no 'run' column; a {spec.test} record labels each row with its run "
+        article = "an" if spec.test[0] in "aeiou" else "a"
+        errors.append(f"{where}: no 'run' column; {article} {spec.test} record labels each row with its run "
                       f"({example}; {spec.path})")
         return errors
     labels = [str(x) for x in dict.fromkeys(df["run"].tolist()) if isinstance(x, (str, int, np.integer))]
