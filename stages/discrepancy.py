@@ -2,7 +2,9 @@
 approach-1 calibrated baseline design (results/approach1/designs/
 baseline_1.6.yaml, written by assemble) and the measured folder (params.yaml
 `measured`) -> results/discrepancy/ (verdict.json, design.yaml, report.md,
-plots/). The profile (params.yaml `profile`) names the workflow's budget
+plots/). The measured folder's active-valve bench record gives the design the
+part's own P/Q map first (entry.part_valve_map: active_valve_part.csv beside
+design.yaml), as `dampertwin discrepancy` does by default. The profile (params.yaml `profile`) names the workflow's budget
 (its `discrepancy:` key, a profile of conf/discrepancy.yaml); the seed is conf/config.yaml `seed`."""
 
 import os

@@ -234,3 +234,29 @@ def test_a_bench_logging_at_its_own_rate_is_read_down_to_100_hz(design, tmp_path
     assert main(["fit", "active-valve", "--data", str(_write(tmp_path, flipped, "c.parquet")),
                  "--out", str(tmp_path / "c")]) == 2
     assert "the pressure drop is mostly negative" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ dampertwin discrepancy: the part's own map
+def test_the_discrepancy_workflow_takes_the_part_map_from_its_record(design, tmp_path):
+    """A measured folder with the part's active-valve record: the workflow's design gets the part's map
+    (the record's valve, not the design's datasheet), says so in a note, and writes it beside its
+    design.yaml; --valve-map design keeps the design's map; a passive design or no record: unchanged."""
+    from dampertwin.discrepancy import entry
+
+    other = load(CONF / "design" / "baseline.yaml").with_overrides(
+        {"active_valve.pq_map": "active_valve_alternative.csv"}).pq_map
+    measured = tmp_path / "measured"
+    (measured / "activevalve").mkdir(parents=True)
+    _write(measured / "activevalve", _record(other, noise=0.5), "baseline.parquet")
+    d, note = entry.part_valve_map(design, measured, CONF)
+    truth = np.array([[_bilinear(other, c, dp) for dp in design.pq_map.dps] for c in design.pq_map.currents])
+    assert np.abs(d.pq_map.flow - truth).max() * LPM < 1.5 and d.hash() != design.hash()
+    assert "replaced by the part's own" in note and d.param(52).value == entry.PART_MAP
+    assert d.with_overrides({"geometry.M_rod": 0.9}).pq_map == d.pq_map  # variants keep the part's map
+    entry._dump_design(d, tmp_path)
+    assert load(tmp_path / "design.yaml").pq_map == d.pq_map
+    kept, note = entry.part_valve_map(design, measured, CONF, "design")
+    assert kept is design and "not used" in note
+    passive = load(CONF / "design" / "twin_tube.yaml")
+    assert entry.part_valve_map(passive, measured, CONF)[0] is passive
+    assert entry.part_valve_map(design, tmp_path / "nothing", CONF) == (design, None)

@@ -389,6 +389,9 @@ def _add_discrepancy(sub) -> None:
     dis.add_argument("--out", required=True, help="output folder")
     dis.add_argument("--profile", choices=("ci", "full"), default="ci", help="budget (conf/discrepancy.yaml)")
     dis.add_argument("--seed", type=int, default=0, help="seed of every random draw (bootstrap)")
+    dis.add_argument("--valve-map", choices=("record", "design"), default="record",
+                     help="the active valve's P/Q map: 'record' builds the part's own from MEASURED/activevalve/"
+                          "baseline.parquet when present (the design's map otherwise); 'design' keeps the design's")
     dis.add_argument("--workers", type=int, default=None,
                      help="processes simulating the records in parallel (default: all cores; same results)")
     dis.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -406,7 +409,7 @@ def _run_discrepancy(args) -> int:
     # workers are stopped by the entry's cleanup, instead of being left behind
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     doc = run_discrepancy(args.design, args.measured, args.out, profile=args.profile, seed=args.seed,
-                          workers=args.workers, scheduler=args.scheduler)
+                          workers=args.workers, scheduler=args.scheduler, valve_map=args.valve_map)
     print(f"verdict: {doc['verdict']}" + (f" ({', '.join(doc['effects'])})" if doc["effects"] else "")
           + f"; held-out gap {doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g} "
           f"(closed {100 * doc['gap']['closed_fraction']:.0f} %); {Path(args.out) / 'verdict.json'}")

@@ -199,6 +199,20 @@ class Design:
                          known_map=self.pq_map if keep_map else None, where=where if source is not None else None,
                          map_dirs=self.map_dirs)
 
+    def with_pq_map(self, pq: PQMap, name: str, source: str) -> "Design":
+        """A new design whose active valve (no. 52) is ``pq`` (currents [A] x
+        pressure drops [Pa] -> flow [m^3/s]), held in memory: ``name`` is the
+        file it is written to beside the design (``write_map``), ``source``
+        its source line (how the map was found)."""
+        if self.pq_map is None:
+            raise DesignError([f"{self.path or '<design>'}: a {self.architecture} design has no active valve (no. 52)"])
+        doc = self._doc(self.path.parent if self.path else None)
+        for p in doc["parameters"]:
+            if p["no"] == 52:
+                p["value"], p["source"] = name, source
+        return _from_doc(doc, self.path, base_dir=self.path.parent if self.path else Path.cwd(), known_map=pq,
+                         map_dirs=self.map_dirs)
+
     # ---- output -----------------------------------------------------------
     def _doc(self, rel_to: Path | None) -> dict:
         params = []

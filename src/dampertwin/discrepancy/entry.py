@@ -25,6 +25,9 @@ CONFIGURATIONS = {"flowbench": "valve", "compliance": "damper", "curving": "damp
                   "training": None, "verification": None, "thermal": "damper",
                   "friction": "damper", "dyno": "damper"}
 PROFILES = ("ci", "full")
+VALVE_MAPS = ("record", "design")  # --valve-map: the part's own map from its bench record, or the design's
+PART_RECORD = Path("activevalve") / "baseline.parquet"  # the part's active-valve bench record (stage activevalve_map)
+PART_MAP = "active_valve_part.csv"  # that map's file beside OUT/design.yaml
 
 
 class DiscrepancyError(UserError):
@@ -63,6 +66,33 @@ def load_design(path: Path, conf: Path):
         raise DiscrepancyError([f"{path}: invalid design"] + list(e.errors)) from None
 
 
+def part_valve_map(design, measured: Path, conf: Path, use: str = "record"):
+    """The design with its active valve's P/Q map (no. 52) built from the measured folder's
+    active-valve bench record (PART_RECORD; calibration.active_valve_map, on the design's grid) when
+    ``use`` is 'record', and a note saying what was done; the design unchanged otherwise (note None
+    without a record). The map is a measurement of this part, where the design's is usually its
+    supplier's datasheet: the workflow's gap is then not the datasheet's error."""
+    from ..calibration.active_valve_map import map_change, map_from_record
+
+    if use not in VALVE_MAPS:
+        raise DiscrepancyError(f"--valve-map {use!r}: expected one of {', '.join(VALVE_MAPS)}")
+    rec = measured / PART_RECORD
+    if not rec.is_file():
+        return design, None
+    if design.pq_map is None:
+        return design, f"{rec}: an active-valve record; the {design.architecture} design has no active valve; ignored"
+    if use == "design":
+        return design, f"{rec}: the part's active-valve record, not used (--valve-map design keeps the design's map)"
+    meas, _ = read_record(rec, "activevalve", conf=conf)
+    pq, _ = map_from_record(meas, design.pq_map, str(rec))
+    cur, ch = max(map_change(pq, design.pq_map).items(), key=lambda kv: abs(kv[1]["largest_change [m^3/s]"]))
+    note = (f"{rec}: the design's active-valve P/Q map (no. 52) replaced by the part's own from this bench record, on "
+            f"the same grid (largest change {ch['largest_change [m^3/s]'] * 6e4:+.4g} l/min at "
+            f"{ch['at_dp [Pa]'] / 1e5:.4g} bar, {cur} A); --valve-map design keeps the design's map")
+    source = f"measured: the part's valve on its active-valve bench, {rec} (dampertwin discrepancy)"
+    return design.with_pq_map(pq, PART_MAP, source), note
+
+
 def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests: dict | None = None):
     """Units of every usable record of the measured folder the profile selects.
     Returns (units, variants by case, skipped notes)."""
@@ -75,7 +105,7 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
     present = {k: v for k, v in present.items() if v}
     usable = {k: v for k, v in present.items() if k in CONFIGURATIONS}
     notes = [f"{measured / k}: not a test this workflow reads ({', '.join(CONFIGURATIONS)}); ignored"
-             for k in present if k not in CONFIGURATIONS]
+             for k in present if k not in CONFIGURATIONS and Path(k) != PART_RECORD.parent]  # part_valve_map
     for p in sorted(measured.iterdir()):
         other = sorted(f.name for f in p.iterdir() if f.is_file() and f.suffix != ".parquet") if p.is_dir() else []
         if other:
@@ -171,12 +201,14 @@ def _flow_input_cutoff(conf: Path) -> float:
 
 
 def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 0, progress: bool = True,
-         tests: dict | None = None, workers: int | None = None, scheduler: str | None = None) -> dict:
+         tests: dict | None = None, workers: int | None = None, scheduler: str | None = None,
+         valve_map: str = "record") -> dict:
     """Run the workflow and write OUT atomically. Returns the verdict document.
     ``workers`` processes simulate the records in parallel (default: the
     machine's cores; 1: in this process, e.g. inside a Dask task); with a
     Dask ``scheduler`` address the records are tasks on that cluster
-    instead (``workers`` unused). Same numbers either way."""
+    instead (``workers`` unused). Same numbers either way. ``valve_map``:
+    see :func:`part_valve_map`."""
     if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
         raise DiscrepancyError(f"--seed {seed!r}: expected a non-negative integer")
     check_out(Path(out), Path(measured), Path(design))
@@ -185,9 +217,10 @@ def main(design: str, measured: str, out: str, profile: str = "ci", seed: int = 
     if profile not in cfg["profiles"]:
         raise DiscrepancyError(f"{conf / 'discrepancy.yaml'}: no profile {profile!r}; expected one of "
                                f"{', '.join(cfg['profiles'])}")
-    d = load_design(Path(design), conf)
+    d, map_note = part_valve_map(load_design(Path(design), conf), Path(measured), conf, valve_map)
     prof = cfg["profiles"][profile]
     units, variants, notes = read_units(Path(measured), d, conf, cfg["features"], prof, tests)
+    notes = [map_note, *notes] if map_note else notes
     problem = Problem(units, cfg["features"], variants, progress=progress)
     if scheduler:
         from ..parallel import DaskMap
