@@ -217,15 +217,20 @@ def test_fit_active_valve_refuses_a_short_record_and_writes_nothing(design, tmp_
     assert not (tmp_path / "o" / "fit.json").exists() and not (tmp_path / "o" / "design.yaml").exists()
 
 
-def test_a_bench_logging_at_its_own_rate_is_read_down_to_100_hz(design, tmp_path, capsys):
-    """A pressure bench logs at its own rate: 250 Hz gives the same map (quasi-static ramps); 50 Hz is refused
-    naming the rate; a record whose dp and flow both run negative (dp measured the other way) is refused."""
+def test_a_bench_logging_at_its_own_rate_is_read_while_it_resolves_the_grid(design, tmp_path, capsys):
+    """A pressure bench logs at its own rate: 250 Hz gives the same map (quasi-static ramps, 0.16 bar between
+    samples); 100 Hz (0.4 bar between samples, the grid steps 0.25 bar) and 50 Hz (below 100 Hz) are refused
+    naming why; a record whose dp and flow both run negative (dp measured the other way) is refused."""
     from dampertwin.cli import main
 
     rec = _record(design.pq_map, noise=0.5)
     assert main(["fit", "active-valve", "--data", str(_write(tmp_path, rec.iloc[::4], "a.parquet")),
                  "--out", str(tmp_path / "a")]) == 0
     assert np.abs(load(tmp_path / "a" / "design.yaml").pq_map.flow - design.pq_map.flow).max() * LPM < 1.5
+    assert main(["fit", "active-valve", "--data", str(_write(tmp_path, rec.iloc[::10], "d.parquet")),
+                 "--out", str(tmp_path / "d")]) == 2
+    assert "moves 4e+04 Pa between samples (median), more than the map grid's smallest step 2.5e+04 Pa" in \
+        capsys.readouterr().err
     assert main(["fit", "active-valve", "--data", str(_write(tmp_path, rec.iloc[::20], "b.parquet")),
                  "--out", str(tmp_path / "b")]) == 2
     assert "sampling rate 50 Hz (measured from the time stamps); an activevalve record needs >= 100 Hz" in \
@@ -259,4 +264,55 @@ def test_the_discrepancy_workflow_takes_the_part_map_from_its_record(design, tmp
     assert kept is design and "not used" in note
     passive = load(CONF / "design" / "twin_tube.yaml")
     assert entry.part_valve_map(passive, measured, CONF)[0] is passive
-    assert entry.part_valve_map(design, tmp_path / "nothing", CONF) == (design, None)
+    (tmp_path / "nothing").mkdir()
+    same, note = entry.part_valve_map(design, tmp_path / "nothing", CONF)
+    assert same is design and "no active-valve bench record; the design's P/Q map" in note
+    _write(measured / "activevalve", _record(other, noise=0.5), "part2.parquet")  # another name: said, not read
+    assert "part2.parquet: not read" in entry.part_valve_map(design, measured, CONF)[1]
+    (measured / ".incomplete").write_text("")  # a lab run that stopped: that, not a map error
+    with pytest.raises(entry.DiscrepancyError, match="did not finish"):
+        entry.part_valve_map(design, measured, CONF)
+
+
+def test_a_map_that_breaks_the_map_reader_rules_is_refused(design):
+    """Design.with_pq_map checks the map as the reader checks a file (orderings, flow 0 at dp 0, SI ranges)."""
+    from dampertwin.design import DesignError, PQMap
+
+    pq = design.pq_map
+    rising = PQMap(pq.currents, pq.dps, pq.flow[::-1].copy())  # flow rising with the current
+    with pytest.raises(DesignError, match="must not rise with current"):
+        design.with_pq_map(rising, "x.csv", "test")
+    with pytest.raises(DesignError, match="values in l/min"):
+        design.with_pq_map(PQMap(pq.currents, pq.dps, pq.flow * 6e4), "x.csv", "test")
+
+
+def test_discrepancy_cli_passes_the_part_map_to_the_workflow(design, tmp_path, monkeypatch, capsys):
+    """`dampertwin discrepancy` wiring: the workflow receives the part's map and the report's note by
+    default, the design's map with --valve-map design (the workflow itself stubbed: this checks the entry)."""
+    from types import SimpleNamespace
+
+    from dampertwin.cli import main
+    from dampertwin.discrepancy import entry
+
+    other = load(CONF / "design" / "baseline.yaml").with_overrides(
+        {"active_valve.pq_map": "active_valve_alternative.csv"}).pq_map
+    measured = tmp_path / "m"
+    (measured / "activevalve").mkdir(parents=True)
+    _write(measured / "activevalve", _record(other, noise=0.5), "baseline.parquet")
+    seen = []
+    monkeypatch.setattr(entry, "read_units", lambda measured, d, *a, **k: ([], {}, ["a note"]))
+    monkeypatch.setattr(entry, "Problem", lambda *a, **k: SimpleNamespace(executor=None))
+    monkeypatch.setattr(entry, "record_pool", lambda workers: None)
+
+    def run_and_write(d, problem, cfg, profile, seed, notes, *rest):
+        seen.append((d, notes))
+        return {"verdict": "none", "effects": [], "gap": {"before": 1.0, "after": 1.0, "closed_fraction": 0.0}}
+
+    monkeypatch.setattr(entry, "_run_and_write", run_and_write)
+    args = ["discrepancy", "--design", str(CONF / "design" / "baseline.yaml"), "--measured", str(measured)]
+    assert main([*args, "--out", str(tmp_path / "o1")]) == 0
+    assert main([*args, "--out", str(tmp_path / "o2"), "--valve-map", "design"]) == 0
+    (d1, n1), (d2, n2) = seen
+    assert np.abs(d1.pq_map.flow - other.flow).max() * LPM < 20.0 < np.abs(d2.pq_map.flow - other.flow).max() * LPM
+    assert d2.pq_map == design.pq_map and "replaced by the part's own" in n1[0] and "not used" in n2[0]
+    assert n1[1:] == n2[1:] == ["a note"]

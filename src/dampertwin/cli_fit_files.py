@@ -252,9 +252,6 @@ def fit_damper(data, *, design=None, bounds=None, predict=(), out=None, config=N
     return result
 
 
-ORDER_FLAG = 0.02  # a curve the map's orderings moved by more than this share of its top flow is flagged
-
-
 def _design_with_map(d: Design, out: Path, record: str, sha: str) -> Path:
     """``out/design.yaml``: the design with no. 52 naming ``out/map.csv`` (its source line says how it was found)."""
     import yaml
@@ -279,7 +276,7 @@ def fit_active_valve(data, *, design=None, out=None) -> dict:
     import matplotlib.pyplot as plt
 
     from . import report
-    from .calibration.active_valve_map import map_change, map_from_record
+    from .calibration.active_valve_map import map_change, map_from_record, ordering_flags
     from .design import write_map
     from .io import read_record
 
@@ -290,7 +287,6 @@ def fit_active_valve(data, *, design=None, out=None) -> dict:
     path = Path(data)
     meas, meta = read_record(path, "activevalve")
     built, moved = map_from_record(meas, d.pq_map, str(path))
-    top = built.flow.max(axis=1)
     result = {"submodel": "active-valve", "design": str(d.path) if d.path else None, "design_hash": d.hash(),
               "synthetic": bool(meta.get("synthetic", False)),
               "method": "per current: isotonic least squares of flow on dp (up and down ramps together) read at "
@@ -298,10 +294,12 @@ def fit_active_valve(data, *, design=None, out=None) -> dict:
               "grid": {"currents [A]": [float(c) for c in built.currents], "dp [Pa]": [float(p) for p in built.dps]},
               "outputs": {"map": "map.csv", "design": "design.yaml", "plot": "pq.png"},
               "change_from_design_map": map_change(built, d.pq_map, moved),
-              "flags": [f"the {c:g} A curve crosses its neighbours: the map's orderings moved it by "
-                        f"{m * 6e4:.3g} l/min ({m / t:.1%} of its top flow); check the run's current"
-                        for c, m, t in zip(built.currents, moved, top) if m > ORDER_FLAG * t],
+              "flags": ordering_flags(built, moved),
               "files": {str(path): {"role": "fitted", "runs": int(meas["run"].nunique()), "samples": len(meas)}}}
+
+    if out is not None:  # a run killed while writing leaves no design.yaml naming another run's map
+        for name in ("fit.json", "design.yaml", "map.csv", "pq.png"):
+            (Path(out) / name).unlink(missing_ok=True)
 
     def outputs(o: Path) -> None:
         write_map(o / "map.csv", built)

@@ -34,6 +34,7 @@ CURRENT_TOL = 0.05   # [A] a run's current against the map's grid current it sta
 MIN_STEP = 1.0e-12   # [m^3/s] (6e-8 l/min) least flow step between two grid pressure drops: far below any sensor
 MIN_SAMPLES = 50     # samples per run at and above the grid's smallest nonzero pressure drop
 MAX_PASSES = 100     # alternating projections onto the two orderings before the record is refused
+ORDER_FLAG = 0.02    # a curve the orderings moved by more than this share of its top flow is flagged
 
 
 class MapRecordError(UserError):
@@ -49,6 +50,11 @@ def _run_curve(dp: np.ndarray, q: np.ndarray, grid_dp: np.ndarray, label: str) -
     if np.count_nonzero(ok & (dp >= grid_dp[1])) < MIN_SAMPLES:
         raise MapRecordError(f"{label}: fewer than {MIN_SAMPLES} samples at or above the map's smallest pressure "
                              f"drop {grid_dp[1]:.4g} Pa; expected a ramp over the whole map")
+    step = float(np.median(np.abs(np.diff(dp))))
+    if step > np.min(np.diff(grid_dp)):
+        raise MapRecordError(f"{label}: the pressure drop moves {step:.4g} Pa between samples (median), more than "
+                             f"the map grid's smallest step {np.min(np.diff(grid_dp)):.4g} Pa; expected a slower "
+                             f"ramp or a faster sampling rate")
     top = float(np.max(dp[ok]))
     if top < grid_dp[-1]:
         raise MapRecordError(f"{label}: the pressure drop reaches {top / 1e5:.4g} bar; the design's map grid goes to "
@@ -96,6 +102,14 @@ def map_from_record(record: pd.DataFrame, grid: PQMap, where: str) -> tuple[PQMa
     fitted = np.array(rows)
     flow = _orderings(fitted, where)
     return PQMap(grid.currents, grid.dps, flow), np.max(np.abs(flow - fitted), axis=1)
+
+
+def ordering_flags(pq: PQMap, moved: np.ndarray) -> list[str]:
+    """A warning per current whose curve the orderings moved by more than ORDER_FLAG of its top flow
+    (``moved``: map_from_record's second result [m^3/s]): crossing curves, a run at another current?"""
+    return [f"the {c:g} A curve crosses its neighbours: the map's orderings moved it by {m * 6e4:.3g} l/min "
+            f"({m / t:.1%} of its top flow); check the run's current"
+            for c, m, t in zip(pq.currents, moved, pq.flow.max(axis=1)) if m > ORDER_FLAG * t]
 
 
 def map_change(fitted: PQMap, datasheet: PQMap, ordered: np.ndarray | None = None) -> dict:

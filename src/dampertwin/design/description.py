@@ -26,7 +26,7 @@ from .adjusters import adjusters_doc, at_setting, current_setting, parse_adjuste
 from .entries import Constant, DesignError, EffectParameter, Parameter
 from .parse_effects import _parse_effect_parameters, _parse_effects
 from .parse_params import _check_physics, _fill_placeholders, _parse_constants, _parse_parameters
-from .pqmap import PQMap, write_map
+from .pqmap import PQMap, map_from_rows, write_map
 from .schema import BY_NUMBER, EFFECT_PARAMETERS, EFFECTS, PARAMETERS, TYPES
 from .yaml_io import (MAX_CONFIG_BYTES, ConfigTextError, _Dumper, _Loader, read_config_text, yaml_error_line, yaml_load,
                       yaml_load_file)
@@ -204,8 +204,13 @@ class Design:
         pressure drops [Pa] -> flow [m^3/s]), held in memory: ``name`` is the
         file it is written to beside the design (``write_map``), ``source``
         its source line (how the map was found)."""
+        where = f"{self.path or '<design>'}: no. 52 (active_valve.pq_map)"
         if self.pq_map is None:
             raise DesignError([f"{self.path or '<design>'}: a {self.architecture} design has no active valve (no. 52)"])
+        errors: list[str] = []
+        rows = np.array([(c, dp, pq.flow[i, j]) for i, c in enumerate(pq.currents) for j, dp in enumerate(pq.dps)])
+        if map_from_rows(rows, where, name, errors) is None:
+            raise DesignError(errors)
         doc = self._doc(self.path.parent if self.path else None)
         for p in doc["parameters"]:
             if p["no"] == 52:

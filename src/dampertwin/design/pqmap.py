@@ -109,7 +109,13 @@ def _read_map(path: Path, label: str, errors: list[str]) -> PQMap | None:
         data.append(vals)
     if len(errors) > n0:
         return None
-    arr = np.array(data, dtype=float).reshape(-1, 3)
+    return map_from_rows(np.array(data, dtype=float).reshape(-1, 3), label, str(path), errors)
+
+
+def map_from_rows(arr: np.ndarray, label: str, path: str, errors: list[str]) -> PQMap | None:
+    """The P/Q map of tidy rows (current [A], dp [Pa], flow [m^3/s]) after the map reader's checks
+    (full grid, flow 0 at dp 0, SI ranges, orderings); None with ``errors`` appended otherwise."""
+    n0 = len(errors)
     currents = np.unique(arr[:, 0])
     dps = np.unique(arr[:, 1])
     if len(currents) < 2 or len(dps) < 2 or len(arr) != len(currents) * len(dps):

@@ -66,29 +66,45 @@ def load_design(path: Path, conf: Path):
         raise DiscrepancyError([f"{path}: invalid design"] + list(e.errors)) from None
 
 
+def check_complete(measured: Path) -> None:
+    """The measured folder exists and is not a lab run that stopped (its marker)."""
+    if not measured.is_dir():
+        raise DiscrepancyError(f"{measured}: measured folder not found (expected DIR/<test>/<case>.parquet)")
+    if (measured / ".incomplete").is_file():  # lab.INCOMPLETE: a lab run that did not finish
+        raise DiscrepancyError(f"{measured}: written by a lab run that did not finish (its {measured / '.incomplete'} "
+                               f"marker); its records may be partial: run the lab again")
+
+
 def part_valve_map(design, measured: Path, conf: Path, use: str = "record"):
     """The design with its active valve's P/Q map (no. 52) built from the measured folder's
     active-valve bench record (PART_RECORD; calibration.active_valve_map, on the design's grid) when
     ``use`` is 'record', and a note saying what was done; the design unchanged otherwise (note None
     without a record). The map is a measurement of this part, where the design's is usually its
     supplier's datasheet: the workflow's gap is then not the datasheet's error."""
-    from ..calibration.active_valve_map import map_change, map_from_record
+    from ..calibration.active_valve_map import map_change, map_from_record, ordering_flags
 
     if use not in VALVE_MAPS:
         raise DiscrepancyError(f"--valve-map {use!r}: expected one of {', '.join(VALVE_MAPS)}")
+    check_complete(measured)
     rec = measured / PART_RECORD
+    others = sorted(str(f) for f in (measured / PART_RECORD.parent).glob("*.parquet") if f != rec)
+    other = f" ({', '.join(others)}: not read; the part's map comes from {PART_RECORD})" if others else ""
     if not rec.is_file():
-        return design, None
+        if design.pq_map is None or use == "design":
+            return design, (f"{measured / PART_RECORD.parent}: not read{other}" if others else None)
+        return design, (f"{rec}: no active-valve bench record; the design's P/Q map (no. 52, "
+                        f"{design.param(52).value}) is used{other}")
     if design.pq_map is None:
         return design, f"{rec}: an active-valve record; the {design.architecture} design has no active valve; ignored"
     if use == "design":
         return design, f"{rec}: the part's active-valve record, not used (--valve-map design keeps the design's map)"
     meas, _ = read_record(rec, "activevalve", conf=conf)
-    pq, _ = map_from_record(meas, design.pq_map, str(rec))
+    pq, moved = map_from_record(meas, design.pq_map, str(rec))
     cur, ch = max(map_change(pq, design.pq_map).items(), key=lambda kv: abs(kv[1]["largest_change [m^3/s]"]))
+    flags = "".join(f"; WARNING: {f}" for f in ordering_flags(pq, moved))
     note = (f"{rec}: the design's active-valve P/Q map (no. 52) replaced by the part's own from this bench record, on "
             f"the same grid (largest change {ch['largest_change [m^3/s]'] * 6e4:+.4g} l/min at "
-            f"{ch['at_dp [Pa]'] / 1e5:.4g} bar, {cur} A); --valve-map design keeps the design's map")
+            f"{ch['at_dp [Pa]'] / 1e5:.4g} bar, {cur} A){flags}; --valve-map design keeps the design's map{other}")
     source = f"measured: the part's valve on its active-valve bench, {rec} (dampertwin discrepancy)"
     return design.with_pq_map(pq, PART_MAP, source), note
 
@@ -96,11 +112,7 @@ def part_valve_map(design, measured: Path, conf: Path, use: str = "record"):
 def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests: dict | None = None):
     """Units of every usable record of the measured folder the profile selects.
     Returns (units, variants by case, skipped notes)."""
-    if not measured.is_dir():
-        raise DiscrepancyError(f"{measured}: measured folder not found (expected DIR/<test>/<case>.parquet)")
-    if (measured / ".incomplete").is_file():  # lab.INCOMPLETE: a lab run that did not finish
-        raise DiscrepancyError(f"{measured}: written by a lab run that did not finish (its {measured / '.incomplete'} "
-                               f"marker); its records may be partial: run the lab again")
+    check_complete(measured)
     present = {p.name: sorted(p.glob("*.parquet")) for p in sorted(measured.iterdir()) if p.is_dir()}
     present = {k: v for k, v in present.items() if v}
     usable = {k: v for k, v in present.items() if k in CONFIGURATIONS}

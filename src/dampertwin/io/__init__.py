@@ -53,7 +53,8 @@ MAX_FILE_MB = 64.0  # [MB] largest measurement file read (DAMPERTWIN_MAX_FILE_MB
 RATE_TOL = 0.01  # relative deviation of the sampling rate from the protocol's still accepted
 # protocols whose records may have any sampling rate at or above this [Hz] (measured from the time column),
 # instead of the protocol's own rate: a dyno export is logged at whatever rate the dyno's software was set to; a
-# pressure bench's quasi-static ramps (40 bar/s) likewise: 100 Hz is 0.4 bar between samples on the map's 25 bar steps
+# pressure bench's quasi-static ramps likewise (the map builder also refuses a record whose pressure drop moves
+# more between samples than the map grid's smallest step: calibration.active_valve_map)
 MIN_RATE = {"dyno": 100.0, "activevalve": 100.0}
 # channels that must vary in a record of the protocol (a constant one is a dead sensor or an empty file)
 EXCITED = {"flowbench": ("flow", "dp"), "activevalve": ("flow", "dp"),
