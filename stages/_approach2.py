@@ -5,7 +5,7 @@ approach-1 result (its top mount: stage approach2_topmount)."""
 
 from __future__ import annotations
 
-from _common import CONF, ROOT, OUT, baseline, config, measured_dir, read_overlay
+from _common import CONF, ROOT, OUT, study_design, config, measured_dir, read_overlay
 from dampertwin.calibration.approach2 import check_damper_record
 from dampertwin.design import load
 from dampertwin.errors import UserError
@@ -38,10 +38,10 @@ def approach2_design():
     """baseline + approach-2 valves / compliance + approach 2's top mount,
     fitted on the module-level test (thesis 7.2; stage approach2_topmount).
     Nothing of approach 1."""
-    d = baseline().with_overrides(read_overlay(OUT2 / "fit" / "overlay.yaml"))
+    d = study_design().with_overrides(read_overlay(OUT2 / "fit" / "overlay.yaml"))
     return d.with_overrides(read_overlay(OUT2 / "topmount" / "overlay.yaml"))
 
 
 def approach1_design():
     """The approach-1 design, only to be simulated beside approach 2's (the comparison)."""
-    return load(OUT / "designs" / "baseline_1.6.yaml", map_dirs=[CONF / "design"])
+    return load(OUT / "designs" / "baseline_1.6.yaml")  # its P/Q map beside it (stage assemble)

@@ -107,6 +107,37 @@ def baseline() -> Design:
     return load(CONF / "design" / "baseline.yaml")
 
 
+VALVE_MAPS = ("part", "datasheet")
+PART_MAP = OUT / "activevalve" / "map.csv"  # stage activevalve_map's output
+
+
+def valve_map() -> str:
+    """params.yaml `valve_map`: which active-valve P/Q map (no. 52) the study's damper-level fits and
+    designs use; `part` (the default) or `datasheet`."""
+    v = params().get("valve_map", "part")
+    if v not in VALVE_MAPS:
+        raise UserError(f"{ROOT / 'params.yaml'}: valve_map {v!r}; expected one of {', '.join(VALVE_MAPS)}")
+    return v
+
+
+def study_design() -> Design:
+    """The baseline design with the study's active-valve map: with `valve_map: part` the part's own map,
+    built from its bench record by stage activevalve_map (PART_MAP, on the datasheet map's grid), in
+    place of the datasheet map, before every fit whose test runs through the valve (a map error would
+    otherwise be absorbed by the gas content, the bulk modulus or the valves); with `datasheet` the
+    design's no. 52 as written (the thesis' approach 1: the supplier's map, fig. 6.2)."""
+    if valve_map() == "datasheet":
+        return baseline()
+    if not PART_MAP.is_file():
+        raise UserError(f"{PART_MAP}: not found; expected the part's active-valve map of stage activevalve_map "
+                        f"(run `dvc repro activevalve_map`, or set valve_map: datasheet in params.yaml)")
+    rel = PART_MAP.relative_to(ROOT).as_posix()
+    d = load(CONF / "design" / "baseline.yaml", map_dirs=[PART_MAP.parent])
+    part = d.with_overrides({"active_valve.pq_map": str(PART_MAP)}, source=rel).pq_map
+    return d.with_pq_map(part, str(PART_MAP), f"measured: the part on its active-valve bench ({rel}, stage "
+                         f"activevalve_map), in place of the datasheet map {d['active_valve.pq_map']}")
+
+
 def write_text(path: Path, text: str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from _approach2 import OUT2, damper_record, profile_block
-from _common import CONF, baseline, config_hash, seed_for, stage, staged_dir, write_json, write_overlay
+from _common import CONF, study_design, config_hash, seed_for, stage, staged_dir, write_json, write_overlay
 from dampertwin.calibration import approach2
 from dampertwin.calibration.concurrent import progress_figure
 from dampertwin.calibration.ga import GASettings
@@ -53,7 +53,7 @@ def main() -> None:
     free, fixed = decision()
     settings = GASettings.from_config(p2.ga)
     seed = seed_for("approach2_fit")
-    d = baseline()
+    d = study_design()
     ck = NpzStore(OUT2 / "checkpoints" / "approach2_fit.npz")  # the stage owns the file; the GAs see a store
     t0 = time.perf_counter()
     res, prob = approach2.fit(d, rec, cal, W, groups, settings, seed, bandwidth=proto.get("sensors", {}).get("force"),

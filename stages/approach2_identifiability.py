@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from _approach2 import OUT2, damper_record, profile_block
-from _common import CONF, baseline, config_hash, stage, staged_dir, write_json, write_text
+from _common import CONF, study_design, config_hash, stage, staged_dir, write_json, write_text
 from dampertwin.calibration import approach2
 from dampertwin.calibration.determined import Rule, figure, summary
 from dampertwin.design import yaml_load_file
@@ -57,7 +57,7 @@ def main() -> None:
     approach2.input_cutoff(cal, {"training": proto})
     W, groups = weights()
     t0 = time.perf_counter()
-    dec, _ = approach2.identifiability(baseline(), rec, cal, W, groups, bandwidth=proto.get("sensors", {}).get("force"),
+    dec, _ = approach2.identifiability(study_design(), rec, cal, W, groups, bandwidth=proto.get("sensors", {}).get("force"),
                                        max_wall_s=float(p2.ga.max_wall_s))
     print(f"approach2_identifiability: {time.perf_counter() - t0:.1f} s wall", flush=True)  # not an artifact
     rule = Rule.from_config(cal["identifiability"])

@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from _approach2 import OUT2, damper_record, profile_block
-from _common import CONF, baseline, config_hash, seed_for, stage, staged_dir, write_json
+from _common import CONF, study_design, config_hash, seed_for, stage, staged_dir, write_json
 from dampertwin.calibration import approach2, sensitivity as sens
 from dampertwin.design import yaml_load_file
 from dampertwin.errors import UserError
@@ -35,7 +35,7 @@ def main() -> None:
     wset = sens.WeightSettings.from_config(cal["weights"])
     seed = seed_for("approach2_sensitivity")
     t0 = time.perf_counter()
-    prob, res, Y = approach2.sensitivity(baseline(), rec, cal, settings, seed,
+    prob, res, Y = approach2.sensitivity(study_design(), rec, cal, settings, seed,
                                          bandwidth=proto.get("sensors", {}).get("force"),
                                          max_wall_s=float(p2.ga.max_wall_s), scheduler=cfg.profile.scheduler,
                                          weights=wset)
@@ -51,7 +51,7 @@ def main() -> None:
                         f"rule {wset.rule!r}, N = {conv['n_final']}); raise n_max in conf/profile/"
                         f"{cfg.profile.name}.yaml approach2.sensitivity or set conf/calibration/approach2.yaml "
                         "weights.rule: estimate")
-    lifts = approach2.nominal_channels(baseline(), prob, [f"lift {g} [m]" for g in res.groups],
+    lifts = approach2.nominal_channels(study_design(), prob, [f"lift {g} [m]" for g in res.groups],
                                        max_wall_s=float(p2.ga.max_wall_s))
     df = res.to_frame(prob.time)
     G = len(res.groups)

@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from _approach2 import OUT2
-from _common import CONF, baseline, config, measured_dir, seed_for, stage, staged_dir, write_fit
+from _common import CONF, study_design, config, measured_dir, seed_for, stage, staged_dir, write_fit
 from dampertwin.calibration.ga import GASettings
 from dampertwin.calibration.identifiability import sweep_points, top_mount_report
 from dampertwin.calibration.module_topmount import calibration, fit_module_top_mount
@@ -55,7 +55,7 @@ def figure(path, d, fitted, rec, coef, cutoff: float, name: str) -> None:
 
 def main() -> None:
     cfg = config()
-    d = baseline()
+    d = study_design()
     where = "conf/calibration/approach2_topmount.yaml"
     cal = calibration(yaml_load_file(CONF / "calibration" / "approach2_topmount.yaml"),
                       yaml_load_file(CONF / "calibration" / "topmount.yaml").get("parameters"), where)

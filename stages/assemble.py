@@ -1,8 +1,14 @@
 """DVC stage `assemble@<case>`: baseline + the case's variant + the fitted
 overlays (its valves, compliance, its top mount) ->
-results/approach1/designs/<case>.yaml."""
+results/approach1/designs/<case>.yaml, with its active valve's P/Q map
+beside it (<case>_active_valve.csv: the part's own with params.yaml
+`valve_map: part`, unless the case names another valve; a design file that
+loads on its own)."""
 
-from _common import CONF, OUT, baseline, read_overlay, stage
+import os
+
+from _common import CONF, OUT, baseline, read_overlay, stage, study_design
+from dampertwin.design import write_map
 from dampertwin.variants import TOP_MOUNTS, VALVE_DESIGNS, load_variant
 
 
@@ -18,11 +24,25 @@ def overlays_for(case: str) -> list:
     return paths
 
 
+def map_name(case: str) -> str:
+    """The file of a case's P/Q map beside its design."""
+    return f"{case}_active_valve.csv"
+
+
 def main(case: str) -> None:
-    d = load_variant(CONF / "variant" / f"{case}.yaml").apply(baseline())
+    variant = load_variant(CONF / "variant" / f"{case}.yaml")
+    base = baseline()
+    own_valve = variant.apply(base).pq_map != base.pq_map  # the case names another valve: no bench record of it
+    d = variant.apply(base if own_valve else study_design())
     for p in overlays_for(case):
         d = d.with_overrides(read_overlay(p), source=p)
-    d.dump(OUT / "designs" / f"{case}.yaml")
+    out = OUT / "designs"
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = out / f".{map_name(case)}.tmp{os.getpid()}"
+    write_map(tmp, d.pq_map)
+    os.replace(tmp, out / map_name(case))  # the map first: the design that names it is written last
+    d = d.with_pq_map(d.pq_map, str(out / map_name(case)), d.param("active_valve.pq_map").source)
+    d.dump(out / f"{case}.yaml")
 
 
 if __name__ == "__main__":

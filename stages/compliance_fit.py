@@ -4,7 +4,7 @@ baseline valve fits applied."""
 
 import matplotlib.pyplot as plt
 
-from _common import (CONF, OUT, baseline, checkpoint, checkpoint_store, config, design_values, measured_dir,
+from _common import (CONF, OUT, study_design, checkpoint, checkpoint_store, config, design_values, measured_dir,
                      read_overlay, seed_for, stage, staged_dir, write_fit)
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
@@ -19,7 +19,7 @@ VALVES = ("piston_rebound", "piston_intake", "base_compression", "base_intake")
 
 def main() -> None:
     cfg = config()
-    d = baseline()
+    d = study_design()
     for v in VALVES:
         d = d.with_overrides(read_overlay(OUT / "valves" / v / "overlay.yaml"))
     cal = yaml_load_file(CONF / "calibration" / "compliance.yaml")

@@ -20,7 +20,7 @@ TESTS = {"monosine": "module", "random": "module", "curving": "damper"}
 
 
 def main(case: str) -> None:
-    design = load(OUT / "designs" / f"{case}.yaml", map_dirs=[CONF / "design"])  # its map stays in conf/design
+    design = load(OUT / "designs" / f"{case}.yaml")  # its P/Q map beside it (stage assemble)
     variant = load_variant(CONF / "variant" / f"{case}.yaml")
     check_current(variant.current, design, variant.path)
     cfg = config()

@@ -162,6 +162,35 @@ def test_the_part_active_valve_map_is_a_design_input(ci_study, tmp_path):
 
 
 @pytest.mark.slow  # runs the ci-profile pipeline (minutes)
+def test_the_study_fits_and_designs_use_the_parts_active_valve_map(ci_study):
+    """params.yaml valve_map: part (the default): the compliance fit ran on the design with the part's map
+    (its design hash), the assembled designs of the datasheet map's cases carry the part's map (a copy beside
+    the design, which it names: the file loads on its own), the different-active-valve case keeps its
+    variant's map."""
+    from dampertwin.design import load
+    from dampertwin.io import read_meta
+
+    repo, *_ = ci_study
+    a1 = repo / "results" / "approach1"
+    base = load(BASELINE)
+    part = load(BASELINE, map_dirs=[a1 / "activevalve"]).with_overrides(
+        {"active_valve.pq_map": str(a1 / "activevalve" / "map.csv")})
+    assert part.pq_map != base.pq_map
+    for case in ("baseline_1.6", "lower_piston_intake"):
+        d = load(a1 / "designs" / f"{case}.yaml")
+        assert d.pq_map == part.pq_map, case
+        assert d["active_valve.pq_map"] == f"{case}_active_valve.csv", case
+        assert d.param("active_valve.pq_map").source.startswith("measured: the part on its active-valve bench")
+    alt = load(a1 / "designs" / "different_active_valve.yaml")
+    assert alt.pq_map == base.with_overrides({"active_valve.pq_map": "active_valve_alternative.csv"}).pq_map
+    valves = {}
+    for v in ("piston_rebound", "piston_intake", "base_compression", "base_intake"):
+        valves.update(yaml.safe_load((a1 / "valves" / v / "overlay.yaml").read_text())["overrides"])
+    fitted_on = read_meta(a1 / "compliance" / "history.parquet")["design_hash"]
+    assert fitted_on == part.with_overrides(valves).hash() != base.with_overrides(valves).hash()
+
+
+@pytest.mark.slow  # runs the ci-profile pipeline (minutes)
 def test_lab_regenerates_the_committed_data_bit_for_bit(ci_study):
     """The copy ran `dvc repro` without data/measured: the lab stage it ran
     must give the output hash committed in dvc.lock (deterministic lab, and

@@ -116,7 +116,7 @@ def design_for(cfg: DictConfig, root: Path | None = None) -> Design:
     case = cfg.variant.case
     cal = root / cfg.calibrated / f"{case}.yaml"
     if cfg.use_calibrated and cal.is_file():
-        d = load(cal, map_dirs=[(root / cfg.design).parent])  # a calibrated design keeps the nominal P/Q map
+        d = load(cal, map_dirs=[(root / cfg.design).parent])  # a variant may name a map of conf/design
     else:
         d = load(root / cfg.design)
         if cfg.variant.overrides:
