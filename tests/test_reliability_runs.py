@@ -356,3 +356,25 @@ def test_fuzz_measurement_frames_load_or_raise_data_error(tmp_path_factory, cols
         read_frame(p, protocol, rate=rate)
     except DataError as e:
         assert str(p) in str(e)
+
+
+def test_study_valve_map_param_is_checked_and_datasheet_keeps_the_design(tmp_path, monkeypatch):
+    """params.yaml `valve_map`: an unknown value or a missing part map is one clear error naming the
+    key or the file; `datasheet` is the design as written (the thesis' supplier map)."""
+    from dampertwin.design import load
+    from dampertwin.errors import UserError
+
+    sys.path.insert(0, str(ROOT / "stages"))
+    try:
+        import _common
+    finally:
+        sys.path.pop(0)
+    monkeypatch.setattr(_common, "params", lambda: {"profile": "ci", "valve_map": "supplier"})
+    with pytest.raises(UserError, match=r"params.yaml: valve_map 'supplier'; expected one of part, datasheet"):
+        _common.study_design()
+    monkeypatch.setattr(_common, "params", lambda: {"profile": "ci", "valve_map": "datasheet"})
+    assert _common.study_design().pq_map == load(ROOT / "conf" / "design" / "baseline.yaml").pq_map
+    monkeypatch.setattr(_common, "params", lambda: {"profile": "ci"})  # the default: part
+    monkeypatch.setattr(_common, "PART_MAP", tmp_path / "activevalve" / "map.csv")
+    with pytest.raises(UserError, match=r"activevalve/map.csv: not found; expected the part's active-valve map"):
+        _common.study_design()
