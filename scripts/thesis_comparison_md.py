@@ -197,7 +197,9 @@ def _reading(res: dict, pub: dict, tabs) -> list[str]:
     out.append(f"- **Current dependence**: reproduced for {len(rep)} of {len(cd)} quantities"
                + (f" ({', '.join(rep)})" if rep else "") + ". The thesis' chapter-6 model moves its 200 Hz PSD "
                f"by {_f(cd['table_6_6 f200']['thesis_change'])} dB from 1.6 A to 0.32 A; the nominal model by "
-               f"{_f(cd['table_6_6 f200']['project_change'])} dB. The thesis' 0.9 A rebound peak is negative "
+               f"{_f(cd['table_6_6 f200']['project_change'])} dB (why, and what the assumed random-test spectrum "
+               "does to the 200 Hz cells: [the random test's 200 Hz cells](thesis-psd.md)). The thesis' 0.9 A "
+               "rebound peak is negative "
                f"({_f(cd['table_6_5 rebound']['thesis'][1])} g), the nominal one positive "
                f"({_f(cd['table_6_5 rebound']['project'][1])} g).")
     dl = res["fig_6_20_delays"]
