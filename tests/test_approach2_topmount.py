@@ -126,11 +126,15 @@ def test_approach2_stages_read_no_approach1_result():
     stages = {k: v for k, v in _dvc_stages().items() if k.startswith("approach2_")}
     assert "approach2_topmount" in stages
     assert "results/approach2/topmount/overlay.yaml" in stages["approach2_simulate"]["deps"]
-    # approach 2's own path reads nothing of approach 1; only the comparison table reads the approach-1
-    # design's simulations, which a stage of their own (approach1_verification) makes
+    # approach 2's own path reads nothing of approach 1's calibration; only the comparison table reads the
+    # approach-1 design's simulations, which a stage of their own (approach1_verification) makes. The part's
+    # active-valve map (stage activevalve_map: the bench record turned into a map, no fit of approach 1) is
+    # a measured design input of both approaches (params.yaml valve_map: part)
+    part_map = "results/approach1/activevalve/map.csv"
     a1 = {(k, d) for k, s in stages.items() for d in s["deps"]
-          if "results/approach1" in d or d.startswith("results/approach2/sim/approach1")}
+          if ("results/approach1" in d and d != part_map) or d.startswith("results/approach2/sim/approach1")}
     assert a1 <= {("approach2_tables", "results/approach2/sim/approach1")}, a1
+    assert "results/approach1/activevalve" in _dvc_stages()["activevalve_map"]["outs"]  # nothing else writes it
     every = _dvc_stages()
     assert "results/approach1/designs/baseline_1.6.yaml" in every["approach1_verification"]["deps"]
     assert every["approach2_simulate"]["outs"] == ["results/approach2/sim/approach2"]
