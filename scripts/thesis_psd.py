@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -225,8 +226,10 @@ def figure(nominal: dict) -> None:
         a.axvline(300, color="grey", lw=0.5)
         a.grid(alpha=0.3)
         a.legend(fontsize=8)
-    fig.savefig(OUT_PNG, dpi=90, metadata={"Software": None})
+    tmp = OUT_PNG.with_name(f".{OUT_PNG.name}.tmp{os.getpid()}")  # a killed run leaves the old figure whole
+    fig.savefig(tmp, dpi=90, format="png", metadata={"Software": None})
     plt.close(fig)
+    os.replace(tmp, OUT_PNG)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,9 @@
 """DVC stage `activevalve_map`: the part's own active-valve P/Q map (no. 52)
 from its active-valve bench record (conf/test/activevalve.yaml), on the
-baseline design's map grid, beside the datasheet map the study uses (the
-thesis takes the supplier's map, fig. 6.2). Outputs in
+baseline design's map grid. With params.yaml `valve_map: part` (the default)
+the study's damper-level fits and designs use it in place of the datasheet map
+(`_common.study_design`); `valve_map: datasheet` keeps the supplier's map, as
+the thesis' approach 1 (fig. 6.2). Outputs in
 results/approach1/activevalve/: map.csv (a design's no. 52 file), map.json
 (how far the part's valve lies from its datasheet, per current) and pq.png.
 
@@ -28,8 +30,8 @@ def main() -> None:
         write_json(tmp / "map.json", {
             "record": name, "synthetic": bool(meta.get("synthetic", False)), "design_hash": d.hash(),
             "datasheet": d["active_valve.pq_map"],
-            "note": "the part's active valve on its bench (map.csv, on the datasheet map's grid) against the "
-                    "datasheet map the study's designs use; a design uses map.csv when its no. 52 names it",
+            "note": "the part's active valve on its bench (map.csv, on the datasheet map's grid) against its "
+                    "datasheet map; the study's fits and designs use map.csv with params.yaml valve_map: part",
             "change_from_datasheet": map_change(built, d.pq_map, moved)})
         fig = report.active_valve_map_figure(meas, built, d.pq_map, "active valve: the part on its bench vs its "
                                              "datasheet map")

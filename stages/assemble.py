@@ -6,8 +6,9 @@ beside it (<case>_active_valve.csv: the part's own with params.yaml
 loads on its own)."""
 
 import os
+from pathlib import Path
 
-from _common import CONF, OUT, baseline, read_overlay, stage, study_design
+from _common import CONF, OUT, ROOT, baseline, read_overlay, stage, study_design
 from dampertwin.design import write_map
 from dampertwin.variants import TOP_MOUNTS, VALVE_DESIGNS, load_variant
 
@@ -29,6 +30,14 @@ def map_name(case: str) -> str:
     return f"{case}_active_valve.csv"
 
 
+def copy_source(d) -> str:
+    """No. 52's source line for the copy beside the design: how the map was found, and the file it copies."""
+    f = Path(d["active_valve.pq_map"])
+    f = Path(os.path.normpath(f if f.is_absolute() else CONF / "design" / f))  # relative: to the baseline design
+    f = f.relative_to(ROOT).as_posix() if f.is_relative_to(ROOT) else f.as_posix()
+    return f"{d.param('active_valve.pq_map').source}; a copy of {f}"
+
+
 def main(case: str) -> None:
     variant = load_variant(CONF / "variant" / f"{case}.yaml")
     base = baseline()
@@ -41,7 +50,7 @@ def main(case: str) -> None:
     tmp = out / f".{map_name(case)}.tmp{os.getpid()}"
     write_map(tmp, d.pq_map)
     os.replace(tmp, out / map_name(case))  # the map first: the design that names it is written last
-    d = d.with_pq_map(d.pq_map, str(out / map_name(case)), d.param("active_valve.pq_map").source)
+    d = d.with_pq_map(d.pq_map, str(out / map_name(case)), copy_source(d))
     d.dump(out / f"{case}.yaml")
 
 

@@ -180,9 +180,13 @@ def test_the_study_fits_and_designs_use_the_parts_active_valve_map(ci_study):
         d = load(a1 / "designs" / f"{case}.yaml")
         assert d.pq_map == part.pq_map, case
         assert d["active_valve.pq_map"] == f"{case}_active_valve.csv", case
-        assert d.param("active_valve.pq_map").source.startswith("measured: the part on its active-valve bench")
+        src = d.param("active_valve.pq_map").source
+        assert src.startswith("measured: the part on its active-valve bench"), case
+        assert src.endswith("; a copy of results/approach1/activevalve/map.csv"), (case, src)
     alt = load(a1 / "designs" / "different_active_valve.yaml")
     assert alt.pq_map == base.with_overrides({"active_valve.pq_map": "active_valve_alternative.csv"}).pq_map
+    # the copy names the file it copies (the variant's valve), not the baseline's datasheet map
+    assert alt.param("active_valve.pq_map").source.endswith("; a copy of conf/design/active_valve_alternative.csv")
     valves = {}
     for v in ("piston_rebound", "piston_intake", "base_compression", "base_intake"):
         valves.update(yaml.safe_load((a1 / "valves" / v / "overlay.yaml").read_text())["overrides"])

@@ -118,3 +118,34 @@ def test_mkdocs_build_strict(tmp_path):
     schema = (tmp_path / "site" / "reference" / "design-schema" / "index.html").read_text()
     assert schema.count("<tr>") > 105 + 26  # every numbered parameter and constant
     assert "generated:" not in cli + schema  # no marker left unreplaced
+
+
+def _side_by_side() -> dict[str, dict]:
+    """results/approach2/side_by_side.md: per approach the summary row's figures and the 1.6 A rebound
+    difference [%] of its table 7.1."""
+    text = (ROOT / "results" / "approach2" / "side_by_side.md").read_text()
+    out = {}
+    for name in ("approach1", "approach2"):
+        row = re.search(rf"^\| {name} \| ([^|]+) \| ([^|]+) \| ([^|]+) \|", text, re.M)
+        t71 = re.search(rf"^### {name}\n\n(?:\|.*\n){{2}}\| 1 \| 1\.6 \|(?:[^|]+\|){{2}}([^|]+)\|", text, re.M)
+        assert row and t71, name
+        out[name] = {"t71": float(row[1]), "t72": float(row[2]), "nrmse": float(row[3]),
+                     "rebound_1.6": abs(float(t71[1]))}
+    return out
+
+
+def test_readme_approach_figures_are_the_committed_side_by_side():
+    """The README's approach 1 vs 2 table and its 1.6 A rebound figures are the committed full run's
+    (results/approach2/side_by_side.md) at the digits printed: a study rerun that moves them makes the
+    README stale, and this test says so."""
+    readme = (ROOT / "README.md").read_text()
+    got = _side_by_side()
+    for no, name in (("1", "approach1"), ("2", "approach2")):
+        m = re.search(rf"^\| {no} \([^)]*\) \| ([\d.]+) % \| ([\d.]+) dB \| ([\d.]+) \|$", readme, re.M)
+        assert m, f"README: the approach {no} row of the side-by-side table"
+        for key, printed in zip(("t71", "t72", "nrmse"), m.groups()):
+            digits = len(printed.split(".")[1]) if "." in printed else 0
+            assert float(printed) == round(got[name][key], digits), (name, key, printed, got[name][key])
+    m = re.search(r"rebound peak at 1\.6 A (\d+) % off,\s+approach 1's (\d+) %", readme)
+    assert m, "README: the 1.6 A rebound peak sentence"
+    assert (int(m[1]), int(m[2])) == (round(got["approach2"]["rebound_1.6"]), round(got["approach1"]["rebound_1.6"]))
