@@ -9,17 +9,29 @@ design.yaml), as `dampertwin discrepancy` does by default. The profile (params.y
 
 import os
 
-from _common import OUT, ROOT, config, measured_dir, stage
+from _common import CONF, OUT, ROOT, config, measured_dir, stage
+from dampertwin.discrepancy.entry import load_config
 from dampertwin.discrepancy.entry import main as discrepancy
+
+# The measured tests this stage reads: its ${measured}/<test> deps in dvc.yaml (tests/test_repo.py). A test
+# the profile also reads from a user's folder (dyno exports) is `dampertwin discrepancy`'s, not the stage's: a
+# stage reads only what it declares, and DVC cannot declare a folder that may not exist.
+READS = ("flowbench", "compliance", "curving", "monosine", "random", "thermal", "friction")
 
 
 def main() -> None:
     cfg = config()  # the profile's `scheduler:` (a Dask address) runs the records on that cluster
     os.chdir(ROOT)  # paths relative to the repository: the report names no machine's folders (same bytes anywhere)
     rel = lambda p: os.path.relpath(p, ROOT)  # noqa: E731
+    profile = cfg.profile.get("discrepancy", cfg.profile.name)
+    wanted = load_config(CONF)["profiles"].get(profile, {}).get("tests") or {}
+    left = sorted(t for t in wanted if t not in READS and (measured_dir() / t).is_dir())
+    if left:
+        print(f"discrepancy: {', '.join(rel(measured_dir() / t) for t in left)} not read by this stage "
+              f"(run `dampertwin discrepancy` on the folder to use them)")
     doc = discrepancy(rel(OUT / "designs" / "baseline_1.6.yaml"), rel(measured_dir()), rel(ROOT / "results" / "discrepancy"),
-                      profile=cfg.profile.get("discrepancy", cfg.profile.name), seed=int(cfg.seed),
-                      scheduler=cfg.profile.scheduler)
+                      profile=profile, seed=int(cfg.seed), scheduler=cfg.profile.scheduler,
+                      tests={t: c for t, c in wanted.items() if t in READS})
     print(f"discrepancy: verdict {doc['verdict']} {', '.join(doc['effects'])}; held-out gap "
           f"{doc['gap']['before']:.3g} -> {doc['gap']['after']:.3g}")
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -378,3 +379,35 @@ def test_study_valve_map_param_is_checked_and_datasheet_keeps_the_design(tmp_pat
     monkeypatch.setattr(_common, "PART_MAP", tmp_path / "activevalve" / "map.csv")
     with pytest.raises(UserError, match=r"activevalve/map.csv: not found; expected the part's active-valve map"):
         _common.study_design()
+
+
+def test_discrepancy_stage_reads_only_the_tests_it_declares(tmp_path, monkeypatch, capsys):
+    """Stage `discrepancy` hands the workflow only the measured tests dvc.yaml declares as its deps
+    (`READS`): a dyno folder in a user's measured folder is named on the terminal and left to
+    `dampertwin discrepancy`, not read undeclared (DVC would not rerun the stage when it changed)."""
+    sys.path.insert(0, str(ROOT / "stages"))
+    try:
+        import discrepancy as stage_mod
+    finally:
+        sys.path.pop(0)
+    deps = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]["discrepancy"]["deps"]
+    declared = {d.split("/", 1)[1] for d in deps if d.startswith("${measured}/")}
+    assert declared - {"activevalve"} == set(stage_mod.READS)  # activevalve: the part's map (entry.part_valve_map)
+
+    class Profile(dict):
+        name, scheduler = "ci", None
+
+    measured = tmp_path / "own"
+    for t in ("flowbench", "dyno"):
+        (measured / t).mkdir(parents=True)
+    seen = {}
+    monkeypatch.setattr(stage_mod, "config", lambda: type("C", (), {"profile": Profile(), "seed": 3})())
+    monkeypatch.setattr(stage_mod, "measured_dir", lambda: measured)
+    monkeypatch.setattr(stage_mod, "discrepancy", lambda *a, **k: seen.update(k) or
+                        {"verdict": "none", "effects": [], "gap": {"before": 1.0, "after": 1.0}})
+    monkeypatch.chdir(tmp_path)
+    stage_mod.main()
+    wanted = stage_mod.load_config(ROOT / "conf")["profiles"]["ci"]["tests"]
+    assert "dyno" in wanted and "dyno" not in seen["tests"]
+    assert seen["tests"] == {t: c for t, c in wanted.items() if t != "dyno"}
+    assert "own/dyno not read by this stage" in capsys.readouterr().out
