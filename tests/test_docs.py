@@ -149,3 +149,18 @@ def test_readme_approach_figures_are_the_committed_side_by_side():
     m = re.search(r"rebound peak at 1\.6 A (\d+) % off,\s+approach 1's (\d+) %", readme)
     assert m, "README: the 1.6 A rebound peak sentence"
     assert (int(m[1]), int(m[2])) == (round(got["approach2"]["rebound_1.6"]), round(got["approach1"]["rebound_1.6"]))
+
+
+def test_sweeps_guide_trend_counts_are_the_committed_metrics():
+    """docs/how-to/sweeps.md quotes the committed study's table-6.5 trend agreement (results/sweeps/
+    metrics.json) against the thesis' measured and simulated columns: a rerun that moves them makes the
+    guide stale, and this test says so."""
+    import json
+
+    m = json.loads((ROOT / "results" / "sweeps" / "metrics.json").read_text())
+    text = " ".join((ROOT / "docs" / "how-to" / "sweeps.md").read_text().split())
+    meas = re.search(r"committed full-profile study (\d+) of the (\d+) comparable directions agree", text)
+    sim = re.search(r"SIMULATED column .*?: (\d+) of its (\d+) directions agree", text)
+    assert meas and sim, "docs/how-to/sweeps.md: the two trend-agreement sentences"
+    for found, key in ((meas, "table65_trend_agreement"), (sim, "table65_trend_agreement_thesis_simulated")):
+        assert (int(found[1]), int(found[2])) == (m[key]["agree"], m[key]["compared"]), (key, found[0])
