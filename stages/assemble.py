@@ -10,6 +10,7 @@ from pathlib import Path
 
 from _common import CONF, OUT, ROOT, baseline, read_overlay, stage, study_design
 from dampertwin.design import write_map
+from dampertwin.errors import UserError
 from dampertwin.variants import TOP_MOUNTS, VALVE_DESIGNS, load_variant
 
 
@@ -30,12 +31,15 @@ def map_name(case: str) -> str:
     return f"{case}_active_valve.csv"
 
 
-def copy_source(d) -> str:
-    """No. 52's source line for the copy beside the design: how the map was found, and the file it copies."""
+def copy_source(d, variant: str | None = None) -> str:
+    """No. 52's source line for the copy beside the design: how the map was found (the case's variant file when
+    it names its own valve), and the repository file it copies."""
     f = Path(d["active_valve.pq_map"])
     f = Path(os.path.normpath(f if f.is_absolute() else CONF / "design" / f))  # relative: to the baseline design
-    f = f.relative_to(ROOT).as_posix() if f.is_relative_to(ROOT) else f.as_posix()
-    return f"{d.param('active_valve.pq_map').source}; a copy of {f}"
+    if not f.is_relative_to(ROOT):
+        raise UserError(f"{f}: the active-valve map a study design copies must lie in the repository {ROOT}")
+    how = f"{variant}: the case's own active valve" if variant else d.param("active_valve.pq_map").source
+    return f"{how}; a copy of {f.relative_to(ROOT).as_posix()}"
 
 
 def main(case: str) -> None:
@@ -50,7 +54,8 @@ def main(case: str) -> None:
     tmp = out / f".{map_name(case)}.tmp{os.getpid()}"
     write_map(tmp, d.pq_map)
     os.replace(tmp, out / map_name(case))  # the map first: the design that names it is written last
-    d = d.with_pq_map(d.pq_map, str(out / map_name(case)), copy_source(d))
+    own = (CONF / "variant" / f"{case}.yaml").relative_to(ROOT).as_posix() if own_valve else None
+    d = d.with_pq_map(d.pq_map, str(out / map_name(case)), copy_source(d, own))
     d.dump(out / f"{case}.yaml")
 
 

@@ -4,7 +4,9 @@ baseline_1.6.yaml, written by assemble) and the measured folder (params.yaml
 `measured`) -> results/discrepancy/ (verdict.json, design.yaml, report.md,
 plots/). The measured folder's active-valve bench record gives the design the
 part's own P/Q map first (entry.part_valve_map: active_valve_part.csv beside
-design.yaml), as `dampertwin discrepancy` does by default. The profile (params.yaml `profile`) names the workflow's budget
+design.yaml), as `dampertwin discrepancy` does by default, whatever params.yaml
+`valve_map` says. It reads the measured tests it declares (READS), not a
+user's dyno exports, which `dampertwin discrepancy` reads. The profile (params.yaml `profile`) names the workflow's budget
 (its `discrepancy:` key, a profile of conf/discrepancy.yaml); the seed is conf/config.yaml `seed`."""
 
 import os
@@ -13,7 +15,7 @@ from _common import CONF, OUT, ROOT, config, measured_dir, stage
 from dampertwin.discrepancy.entry import load_config
 from dampertwin.discrepancy.entry import main as discrepancy
 
-# The measured tests this stage reads: its ${measured}/<test> deps in dvc.yaml (tests/test_repo.py). A test
+# The measured tests this stage reads: its ${measured}/<test> deps in dvc.yaml (tests/test_reliability_runs.py). A test
 # the profile also reads from a user's folder (dyno exports) is `dampertwin discrepancy`'s, not the stage's: a
 # stage reads only what it declares, and DVC cannot declare a folder that may not exist.
 READS = ("flowbench", "compliance", "curving", "monosine", "random", "thermal", "friction")

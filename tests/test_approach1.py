@@ -186,7 +186,8 @@ def test_the_study_fits_and_designs_use_the_parts_active_valve_map(ci_study):
     alt = load(a1 / "designs" / "different_active_valve.yaml")
     assert alt.pq_map == base.with_overrides({"active_valve.pq_map": "active_valve_alternative.csv"}).pq_map
     # the copy names the file it copies (the variant's valve), not the baseline's datasheet map
-    assert alt.param("active_valve.pq_map").source.endswith("; a copy of conf/design/active_valve_alternative.csv")
+    assert alt.param("active_valve.pq_map").source == ("conf/variant/different_active_valve.yaml: the case's own "
+                                                        "active valve; a copy of conf/design/active_valve_alternative.csv")
     valves = {}
     for v in ("piston_rebound", "piston_intake", "base_compression", "base_intake"):
         valves.update(yaml.safe_load((a1 / "valves" / v / "overlay.yaml").read_text())["overrides"])

@@ -127,10 +127,11 @@ def _side_by_side() -> dict[str, dict]:
     out = {}
     for name in ("approach1", "approach2"):
         row = re.search(rf"^\| {name} \| ([^|]+) \| ([^|]+) \| ([^|]+) \|", text, re.M)
-        t71 = re.search(rf"^### {name}\n\n(?:\|.*\n){{2}}\| 1 \| 1\.6 \|(?:[^|]+\|){{2}}([^|]+)\|", text, re.M)
-        assert row and t71, name
+        block = re.search(rf"^### {name}\n\n(\|.*)\n\|.*\n(\| 1 \| 1\.6 \|.*)$", text, re.M)
+        assert row and block, name
+        head, first = ([c.strip() for c in line.strip("|").split("|")] for line in block.groups())
         out[name] = {"t71": float(row[1]), "t72": float(row[2]), "nrmse": float(row[3]),
-                     "rebound_1.6": abs(float(t71[1]))}
+                     "rebound_1.6": abs(float(first[head.index("Rebound difference [%]")]))}
     return out
 
 
@@ -160,7 +161,7 @@ def test_sweeps_guide_trend_counts_are_the_committed_metrics():
     m = json.loads((ROOT / "results" / "sweeps" / "metrics.json").read_text())
     text = " ".join((ROOT / "docs" / "how-to" / "sweeps.md").read_text().split())
     meas = re.search(r"committed full-profile study (\d+) of the (\d+) comparable directions agree", text)
-    sim = re.search(r"SIMULATED column .*?: (\d+) of its (\d+) directions agree", text)
+    sim = re.search(r"SIMULATED column [^:]*published\.yaml`\): (\d+) of its (\d+) directions agree", text)
     assert meas and sim, "docs/how-to/sweeps.md: the two trend-agreement sentences"
     for found, key in ((meas, "table65_trend_agreement"), (sim, "table65_trend_agreement_thesis_simulated")):
         assert (int(found[1]), int(found[2])) == (m[key]["agree"], m[key]["compared"]), (key, found[0])

@@ -136,7 +136,9 @@ def read_units(measured: Path, design, conf: Path, fcfg: dict, prof: dict, tests
         if sel != "all":
             files = [f for f in files if f.stem in (sel or [])]
         if not files:
-            notes.append(f"{test}: present, not used in this profile")
+            left = tests is not None and prof["tests"].get(test)  # the profile reads it; the caller left it out
+            notes.append(f"{test}: present, left out by the caller (the DVC stage reads only the tests it declares; "
+                         f"`dampertwin discrepancy` reads them)" if left else f"{test}: present, not used in this profile")
             continue
         proto_path = conf / "test" / f"{test}.yaml"
         proto = load_protocol(proto_path)
