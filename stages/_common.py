@@ -93,13 +93,20 @@ def config():
     return compose([f"profile={params()['profile']}"], ROOT)
 
 
+HASHED_PARAMS = ("profile", "measured")  # params.yaml keys every stage that writes the hash declares
+
+
 def config_hash() -> str:
-    """Hash of the composed configuration and params.yaml (carried by every artifact)."""
+    """Hash of the composed configuration and the params.yaml keys HASHED_PARAMS (carried by every
+    artifact): only keys each hash-writing stage declares in dvc.yaml, so an undeclared key (e.g.
+    `valve_map` for the valve fits) never changes an output behind DVC's back."""
     import hashlib
 
     from omegaconf import OmegaConf
 
-    blob = json.dumps({"config": OmegaConf.to_container(config(), resolve=True), "params": params()}, sort_keys=True)
+    p = params()
+    blob = json.dumps({"config": OmegaConf.to_container(config(), resolve=True),
+                       "params": {k: p.get(k) for k in HASHED_PARAMS}}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 

@@ -26,29 +26,37 @@ TEST = "module_topmount"
 PLOT_S = 2.0  # [s] of the record shown: the 10 mm-stroke bursts (the fastest rubber deflections)
 
 
-def figure(path, d, fitted, rec, coef, cutoff: float, name: str) -> None:
+def figure(path, d, fitted, rec, coef, kept: str, cutoff: float, name: str) -> None:
     """Fig. 7.4 a/b: measured and simulated force over the last PLOT_S of the
-    run; the force-deflection characteristic with the nominal and fitted
-    static curves."""
+    run; the force-deflection characteristic: measured, the fitted model's
+    total force (static curve + rubber dynamics) and the static curves alone
+    (nominal, fitted: which one was kept is ``kept``)."""
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
     t = rec["time [s]"].to_numpy()
     m = t >= t[-1] - PLOT_S
     axes[0].plot(t[m], rec["force [N]"].to_numpy()[m], lw=0.8, label="measured (load cell)")
+    sims = {}
     for label, dd, st in (("nominal", d, ":"), ("fitted", fitted, "--")):
         r = simulate_from_record(dd, rec, "topmount", 0.0, cutoff=cutoff)
-        axes[0].plot(r.time[m[: len(r.time)]], np.asarray(r["top mount force [N]"])[m[: len(r.time)]], st, label=label)
+        sims[label] = np.asarray(r["top mount force [N]"])
+        axes[0].plot(r.time[m[: len(r.time)]], sims[label][m[: len(r.time)]], st, label=label)
     X = rec["displacement [m]"].to_numpy()
     step = max(1, len(X) // 5000)
     axes[1].plot(1e3 * X[::step], rec["force [N]"].to_numpy()[::step], ".", ms=1.5, alpha=0.4, label="measured")
+    n = min(len(X), len(sims["fitted"]))
+    axes[1].plot(1e3 * X[:n][m[:n]], sims["fitted"][:n][m[:n]], "-", lw=0.6, color="tab:green", alpha=0.7,
+                 label=f"fitted model, last {PLOT_S:g} s (static curve + rubber dynamics)")
     xs = np.linspace(X.min(), X.max(), 200)
-    for label, c, st in (("nominal F_LD", d["top_mount.F_LD"], ":"),
-                         ("least squares, 5th order\n(force minus the nominal rubber dynamics)", coef, "-")):
-        axes[1].plot(1e3 * xs, sum(ck * xs ** (k + 1) for k, ck in enumerate(c)), st, label=label)
+    for label, c, st in (("nominal F_LD (static part)", d["top_mount.F_LD"], ":"),
+                         (f"fitted F_LD (static part alone; {kept})", coef, "-.")):
+        axes[1].plot(1e3 * xs, sum(ck * xs ** (k + 1) for k, ck in enumerate(c)), st, color="black" if st == "-." else None,
+                     label=label)
     axes[0].set(xlabel="time [s]", ylabel="force [N]", title=f"module test {name}: load cell, last {PLOT_S:g} s (fig. 7.4a)")
-    axes[1].set(xlabel="rod against housing (LVDT) [mm]", ylabel="force [N]", title="static curve F_LD (thesis fig. 7.4b)")
+    axes[1].set(xlabel="rod against housing (LVDT) [mm]", ylabel="force [N]",
+                title="force-deflection; static curve F_LD (thesis fig. 7.4b)")
     for ax in axes:
         ax.grid(alpha=0.3)
-        ax.legend()
+        ax.legend(fontsize=8)
     fig.savefig(path, dpi=100, metadata={"Software": None})
     plt.close(fig)
 
@@ -78,7 +86,7 @@ def main() -> None:
     with staged_dir(out) as tmp:  # all outputs or none
         write_fit(tmp, res, meta, "N*s", d.hash(), best=best, extra={"determined": determined})
         fitted = d.with_overrides({k: v for k, v in best.items() if not k.startswith("sensor.")})
-        figure(tmp / "topmount.png", d, fitted, rec, coef, cal["input_cutoff"], cal["dynamic_run"])
+        figure(tmp / "topmount.png", d, fitted, rec, coef, kept, cal["input_cutoff"], cal["dynamic_run"])
     ck.path.unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent
 
 

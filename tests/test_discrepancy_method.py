@@ -6,6 +6,7 @@ rule, and the rules for effect pairs, two hidden effects named (SYNTHETIC lab da
 from __future__ import annotations
 
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -95,8 +96,19 @@ def test_flow_bench_records_pin_the_valves(tmp_path):
             progress=False, workers=1)
     cfg = entry.load_config(ROOT / "conf")
     d = load(DESIGN)
-    units, _, _ = entry.read_units(tmp_path / "m", d, ROOT / "conf", cfg["features"], cfg["profiles"]["ci"],
-                                   {"flowbench": FLOWBENCH})
+    # a test the profile reads but the caller left out (the DVC stage's declared tests) and one the
+    # profile does not read (training): present, named in the notes, not read
+    for extra in ("dyno", "training"):
+        (tmp_path / "m" / extra).mkdir()
+        shutil.copy(tmp_path / "m" / "flowbench" / "piston_rebound.parquet", tmp_path / "m" / extra / "x.parquet")
+    units, _, notes = entry.read_units(tmp_path / "m", d, ROOT / "conf", cfg["features"], cfg["profiles"]["ci"],
+                                       {"flowbench": FLOWBENCH})
+    assert [n for n in notes if n.startswith("dyno:")] == [
+        "dyno: present, left out by the caller (the DVC stage reads only the tests it declares; "
+        "`dampertwin discrepancy` reads them)"]
+    assert [n for n in notes if n.startswith("training:")] == ["training: present, not used in this profile"]
+    for extra in ("dyno", "training"):
+        shutil.rmtree(tmp_path / "m" / extra)
     assert sorted(u.run for u in units) == sorted(FLOWBENCH)
     assert all(u.configuration == "valve" and u.labels[0][0] == "dp" and u.n_cycles >= 2 for u in units)
     pr = Problem(units, cfg["features"], {}, progress=False)

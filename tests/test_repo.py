@@ -236,3 +236,41 @@ def test_committed_outputs_open_offline():
     for rel in _tracked_files():
         if rel.endswith(".csv"):
             assert len(pd.read_csv(ROOT / rel)) > 0, f"{rel}: no rows"
+
+
+def _stage_scripts():
+    """(stage name, script path, declared params) of every dvc.yaml stage (foreach bodies once)."""
+    doc = yaml.safe_load((ROOT / "dvc.yaml").read_text())
+    for name, st in doc["stages"].items():
+        body = st.get("do", st)
+        script = next((w for w in body["cmd"].split() if w.endswith(".py")), None)
+        if script:
+            yield name, ROOT / script, body.get("params", [])
+
+
+def test_config_hash_covers_only_params_every_writer_declares(monkeypatch):
+    """The config hash in a stage's outputs depends on no params.yaml key that stage leaves undeclared:
+    every stage that writes it declares HASHED_PARAMS and all of conf/config.yaml, and a key outside
+    HASHED_PARAMS (valve_map) leaves the hash unchanged while a hashed one (profile) changes it."""
+    sys.path.insert(0, str(ROOT / "stages"))
+    try:
+        import _common
+    finally:
+        sys.path.remove(str(ROOT / "stages"))
+    writers = 0
+    for name, script, declared in _stage_scripts():
+        text = script.read_text()
+        if "config_hash" not in text and "write_fit" not in text:
+            continue
+        writers += 1
+        flat = {p for p in declared if isinstance(p, str)}
+        whole = [p for p in declared if isinstance(p, dict) and "conf/config.yaml" in p]
+        assert set(_common.HASHED_PARAMS) <= flat, (name, declared)
+        assert whole and whole[0]["conf/config.yaml"] is None, (name, "conf/config.yaml: all keys", declared)
+    assert writers >= 10
+    base = _common.params()
+    h = _common.config_hash()
+    monkeypatch.setattr(_common, "params", lambda: {**base, "valve_map": "datasheet" if base.get("valve_map") != "datasheet" else "part"})
+    assert _common.config_hash() == h
+    monkeypatch.setattr(_common, "params", lambda: {**base, "profile": "ci" if base["profile"] != "ci" else "full"})
+    assert _common.config_hash() != h
