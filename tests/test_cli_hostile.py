@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -77,14 +78,26 @@ def test_device_record_refused_naming_the_column(tmp_path, make, needles):
     ("valve", "ga: {population: 0}\n", "population 0; expected an integer >= 2"),
     ("valve", "parameters:\n  - {name: a, bounds: [50, .inf]}\n", "two finite numbers"),
     ("valve", "parameters:\n  - {name: a, window: [2, 0.5]}\n", "f_lo < f_hi"),
+    ("valve", "parameters:\n  - {key: piston_intake.a, bounds: [50, 500]}\n  - {name: a, bounds: [60, 600]}\n",
+     "piston_intake.a searched more than once"),
+    ("valve", "objective: bogus\n", "objective: expected a mapping, got 'bogus'"),
+    ("valve", "ga: [1, 2]\n", "ga: expected a mapping"),
+    ("valve", "polish: 7\n", "polish: expected a mapping, got 7"),
+    ("valve", "polish: {starts: 3}\n", "expected starts and max_nfev"),
+    ("valve", "polish: {starts: -4, max_nfev: 10}\n", "polish: starts = -4; expected a positive integer"),
+    ("topmount", "runs: sweep_A0.001_f10\n", "runs: 'sweep_A0.001_f10'; expected a list of run labels"),
+    ("topmount", "static: yes\n", "static: expected a mapping"),
+    ("topmount", "static: {run: static, order: 500}\n", "static.order: 500; expected an integer 1..5"),
+    ("topmount", "determined: [1, 2]\n", "determined: expected a mapping"),
+    ("topmount", "determined: {frequencies: [-5, 0], amplitude: -1}\n", "expected {frequencies: [Hz > 0, ...]"),
 ])
 def test_bounds_file_errors_are_one_line_before_any_fit(tmp_path, capsys, submodel, text, needle):
     """Each fails in well under the GA's first generation (no simulation runs) with one line naming the key."""
     b = tmp_path / "b.yaml"
     b.write_text(text)
-    if submodel == "friction":
+    if submodel in ("friction", "topmount"):  # the file is refused before the record is read
         data = write_frame(tmp_path / "d.parquet", device(), {"synthetic": True})
-        argv = ["fit", "friction", "--data", str(data)]
+        argv = ["fit", submodel, "--data", str(data)]
     else:
         from test_reliability_io import flow
         data = write_frame(tmp_path / "piston_intake.parquet", flow("piston_intake"),
@@ -198,10 +211,8 @@ def test_a_stopped_lab_run_leaves_a_marker_the_workflow_refuses(tmp_path, monkey
         calls["n"] += 1
         if calls["n"] == 2 and stop:
             raise KeyboardInterrupt
-        p = tmp_path / "o" / test / f"{case}.parquet"
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_bytes(b"")
-        return str(p)
+        p = tmp_path / "o" / test / f"{case}.parquet"  # a record of this sample, as the lab writes it
+        return str(write_frame(p, device(), {"synthetic": True, "sample_hash": sample_doc["_hash"]}))
 
     monkeypatch.setattr(lab, "_measure_and_write", fake)
     only = [("compliance", "baseline"), ("friction", "baseline")]
@@ -211,7 +222,11 @@ def test_a_stopped_lab_run_leaves_a_marker_the_workflow_refuses(tmp_path, monkey
     assert (tmp_path / "o" / ".incomplete").is_file()
     with pytest.raises(DiscrepancyError, match="did not finish"):
         read_units(tmp_path / "o", None, CONF, {}, {})
+    # a rerun of other tests leaves the marker while the stopped run's unwritten record is still missing
     stop, calls["n"] = False, 0
+    lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=[("topmount", "baseline")], workers=1,
+                progress=False)
+    assert (tmp_path / "o" / ".incomplete").read_text().splitlines()[1:] == ["friction/baseline"]
     lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=only, workers=1, progress=False)
     assert not (tmp_path / "o" / ".incomplete").exists()
 
@@ -282,3 +297,165 @@ def test_a_lab_folder_of_another_sample_is_refused(tmp_path):
         lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=[("friction", "baseline")],
                     workers=1, progress=False)
     assert rec.is_file() and not (tmp_path / "o" / ".incomplete").exists()
+
+
+# ------------------------------------------------------------------ a second outside review (inputs kept, not replaced)
+def test_a_lab_folder_holding_an_imported_measurement_is_refused_and_kept(tmp_path):
+    """The lab never writes synthetic data over a record it did not write (an imported one, no sample hash)."""
+    import dampertwin.lab as lab
+    from test_reliability_io import ROOT, fric
+    rec = write_frame(tmp_path / "o" / "friction" / "baseline.parquet", fric(),
+                      {"imported": True, "source": "my_rig.csv", "protocol": "friction", "synthetic": False})
+    before = rec.read_bytes()
+    with pytest.raises(lab.LabError, match="an imported measurement the lab did not write"):
+        lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=[("friction", "baseline")],
+                    workers=1, progress=False)
+    assert rec.read_bytes() == before and not (tmp_path / "o" / ".incomplete").exists()
+
+
+@pytest.mark.parametrize("opt", ["--data", "--design"])
+def test_a_fit_whose_output_folder_holds_an_input_is_refused_and_the_input_kept(tmp_path, capsys, opt):
+    import shutil
+
+    from test_reliability_io import ROOT, flow
+    out = tmp_path / "o"
+    out.mkdir()
+    data = write_frame((out if opt == "--data" else tmp_path) / "piston_intake.parquet", flow("piston_intake"),
+                       {"protocol": "flowbench", "synthetic": True})
+    design = shutil.copy(ROOT / "conf" / "design" / "baseline.yaml", (out if opt == "--design" else tmp_path) / "d.yaml")
+    kept = {p: p.read_bytes() for p in (data, design)}
+    assert main(["fit", "valve", "--valve", "piston_intake", "--data", str(data), "--design", str(design),
+                 "--population", "4", "--generations", "1", "--out", str(out)]) == 2
+    assert f"holds the {opt} file" in _err(capsys)
+    assert all(p.read_bytes() == b for p, b in kept.items()) and not (out / "fit.json").exists()
+
+
+def test_a_searched_parameter_given_by_key_and_by_name_is_one_line_or_replaced():
+    """`a` and `piston_intake.a` are one parameter: twice in one list is refused before any fit, and a
+    --param by key replaces the --bounds file's item by name (the documented override)."""
+    from dampertwin.calibration.approach1 import specs_from_config
+    from dampertwin.cli_fit import _merge_items
+    from dampertwin.design import load
+    from test_reliability_io import ROOT
+    d = load(ROOT / "conf" / "design" / "baseline.yaml")
+    items = [{"key": "piston_intake.a", "bounds": [50.0, 500.0]}, {"name": "a", "bounds": [60.0, 600.0]}]
+    with pytest.raises(Exception, match=r"b.yaml: piston_intake.a searched more than once \(items 0, 1\)"):
+        specs_from_config(d, items, prefix="piston_intake.", where="b.yaml")
+    merged = _merge_items([{"name": "a", "bounds": [60.0, 600.0]}, {"name": "c", "bounds": [-90.0, -10.0]}],
+                          [{"key": "piston_intake.a", "bounds": [50.0, 500.0]}])
+    assert merged == [{"name": "c", "bounds": [-90.0, -10.0]}, {"key": "piston_intake.a", "bounds": [50.0, 500.0]}]
+    specs_from_config(d, merged, prefix="piston_intake.", where="b.yaml")  # one gene each
+
+
+def test_a_compliance_current_against_the_records_is_refused_before_the_fit(tmp_path, capsys):
+    from test_reliability_io import mono
+    data = write_frame(tmp_path / "c.parquet", mono(T=0.5), {"synthetic": True})
+    out = tmp_path / "o"
+    assert main(["fit", "compliance", "--data", str(data), "--current", "0.32", "--population", "4",
+                 "--generations", "1", "--out", str(out)]) == 2
+    assert "run 'I1.6': recorded at 1.6 A; --current 0.32 A" in _err(capsys) and not (out / "fit.json").exists()
+
+
+def _csv_source(tmp_path):
+    src = tmp_path / "s.csv"
+    df = device().drop(columns="velocity [m/s]").rename(columns={"time [s]": "t", "displacement [m]": "x",
+                                                                 "force [N]": "F"})
+    df.assign(I=1.6).to_csv(src, index=False)
+    return src
+
+
+def test_an_import_constant_never_replaces_a_mapped_column(tmp_path, capsys):
+    m = tmp_path / "m.yaml"
+    m.write_text("synthetic: true\ncolumns:\n  t: {quantity: time, unit: s}\n  x: {quantity: displacement, unit: m}\n"
+                 "  F: {quantity: force, unit: N}\n  I: {quantity: current, unit: A}\n"
+                 "constants:\n  current: {value: 0, unit: mA}\n")
+    out = tmp_path / "o.parquet"
+    assert main(["import", str(_csv_source(tmp_path)), "--map", str(m), "--out", str(out)]) == 2
+    assert "constant 'current': quantity 'current' is already mapped from column 'I'" in _err(capsys)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("raw", [b'{"data": [[0, 1], [1, 2]', '{"data": [[0, 1]], "n": "\xe9"}'.encode("latin-1")],
+                         ids=["truncated", "latin-1"])
+def test_an_unreadable_json_source_is_one_line(tmp_path, capsys, raw):
+    src = tmp_path / "s.json"
+    src.write_bytes(raw)
+    m = tmp_path / "m.yaml"
+    m.write_text("synthetic: true\njson: {matrix: data, columns: [t, x]}\ncolumns:\n  t: {quantity: time, unit: s}\n"
+                 "  x: {quantity: displacement, unit: m}\n")
+    assert main(["import", str(src), "--map", str(m), "--out", str(tmp_path / "o.parquet")]) == 2
+    assert f"{src}: not a UTF-8 JSON file" in _err(capsys)
+
+
+def test_kpi_dyno_on_a_flow_bench_record_and_metadata_that_is_no_object(tmp_path, capsys):
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from test_reliability_io import flow
+    p = write_frame(tmp_path / "piston_intake.parquet", flow("piston_intake"), {"protocol": "flowbench", "synthetic": True})
+    assert main(["kpi", "dyno", str(p)]) == 2
+    assert "a flowbench record without 'displacement [m]' and 'force [N]'; kpi dyno reads damper records" in _err(capsys)
+    t = pa.Table.from_pandas(device(), preserve_index=False)
+    q = tmp_path / "listmeta.parquet"
+    pq.write_table(t.replace_schema_metadata({b"dampertwin": json.dumps([1, 2]).encode()}), q)
+    assert main(["kpi", "dyno", str(q)]) == 2
+    assert f"{q}: metadata 'dampertwin' is a JSON list; expected a JSON object" in _err(capsys)
+
+
+def test_a_top_mount_run_the_record_lacks_is_refused_not_skipped():
+    """static.run / runs naming no run of the fitted record: a FitError before the GA (it was ignored,
+    and a string of runs matched by substring)."""
+    from dampertwin.calibration import component_fits as cf
+    from dampertwin.calibration.ga import FitError, GASettings
+    from dampertwin.design import load
+    from test_reliability_io import ROOT
+    f = pd.concat([device().assign(run="static"), device().assign(run="sweep_f10")], ignore_index=True)
+    kw = dict(cutoff=500.0, force_bandwidth=None, settings=GASettings(4, 50.0, 1, 10.0), seed=0,
+              where_k={"frequencies": [10.0], "amplitude": 1e-4})
+    d = load(ROOT / "conf" / "design" / "baseline.yaml")
+    items = [{"name": "k0", "window": [0.5, 2.0]}]
+    for static, want, needle in (({"run": "nosuch"}, None, "no run 'nosuch'"), ({}, ["sweep_f1"], "no run 'sweep_f1'")):
+        with pytest.raises(FitError, match=needle):
+            cf.fit_topmount_records(d, [("rec.parquet", f)], items, static=static, want=want, **kw)
+
+
+@pytest.mark.parametrize("path, value, needle", [
+    (("actuator", "delay"), 1.0e6, "benches.actuator.delay: 1000000.0; expected 0 to 0.05"),
+    (("actuator", "gain"), 1.0e9, "benches.actuator.gain"),
+    (("temperature", "start"), 1.0e6, "benches.temperature.start"),
+    (("temperature", "drift"), -1.0e6, "benches.temperature.drift"),
+    (("noise", "force [N]"), 1.0e12, "benches.noise.force [N]: 1000000000000.0; expected at most 500"),
+    (("sensors", "displacement [m]", "resolution"), 1.0, "benches.sensors.displacement [m].resolution"),
+    (("nominal",), 5, "nominal: expected a path"),
+], ids=["delay", "gain", "temperature", "drift", "noise", "resolution", "nominal"])
+def test_a_lab_rig_value_beyond_a_real_rig_is_refused_naming_the_key(tmp_path, path, value, needle):
+    """A unit slip in the sample's benches (ms for s, a noise in the wrong unit) is refused when the sample is
+    read, naming the key; not a solver failure, nor records the project's reader refuses."""
+    import yaml
+
+    from dampertwin.lab import LabError, load_sample
+    from test_reliability_io import ROOT
+    doc = yaml.safe_load((ROOT / "conf" / "lab" / "sample.yaml").read_text())
+    node = doc if path == ("nominal",) else doc["benches"]
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = value
+    p = tmp_path / "s.yaml"
+    p.write_text(yaml.safe_dump(doc))
+    with pytest.raises(LabError, match=re.escape(needle)):
+        load_sample(p)
+
+
+def test_param_scale_twice_given_records_and_a_folder_for_a_design_are_one_line(tmp_path, capsys):
+    from test_reliability_io import flow
+    data = write_frame(tmp_path / "piston_intake.parquet", flow("piston_intake"), {"protocol": "flowbench", "synthetic": True})
+    assert main(["fit", "valve", "--valve", "piston_intake", "--data", str(data), "--param", "F_c=1:5:foo",
+                 "--out", str(tmp_path / "o")]) == 2
+    assert "--param 'F_c=1:5:foo': scale 'foo'; expected" in _err(capsys)
+    rec = write_frame(tmp_path / "d.parquet", device(), {"synthetic": True})
+    assert main(["fit", "damper", "--data", f"{rec},{tmp_path / '.' / 'd.parquet'}", "--out", str(tmp_path / "o")]) == 2
+    assert "given more than once; give each record once" in _err(capsys)
+    assert main(["design", "check", str(tmp_path)]) == 2
+    assert f"{tmp_path}: a folder; expected a design YAML file" in _err(capsys)

@@ -275,3 +275,17 @@ def test_plot_command_writes_readable_pngs(tmp_path):
         with Image.open(p) as im:
             assert im.size[0] > 600 and im.size[1] > 400
     assert main(["plot", "no_such_case", "--conf", str(CONF)]) == 2
+    # a case name that is a path writes nothing outside --out
+    assert main(["plot", "../variant/baseline_1.6", "--out", str(tmp_path / "o" / "p"), "--conf", str(CONF)]) == 2
+    assert not (tmp_path / "o").exists()
+    # a bad measured record found after the first figure: the earlier set stays whole (figures written last)
+    before = {p: p.read_bytes() for p in pngs}
+    import pandas as pd
+
+    from dampertwin.io import write_frame
+    write_frame(data / "monosine" / "lower_base_intake.parquet",  # readable metadata, refused by the reader
+                pd.DataFrame({"time [s]": [0.0, 1.0], "force [N]": [0.0, 1.0]}), {"synthetic": True})
+    assert main(["plot", "lower_base_intake", "--data", str(data), "--out", str(tmp_path / "plots"),
+                 "--conf", str(CONF), "--design", str(CONF / "lab" / "nominal.yaml")]) == 2
+    assert {p: p.read_bytes() for p in pngs} == before
+    assert sorted(p.name for p in (tmp_path / "plots" / "lower_base_intake").iterdir()) == [p.name for p in pngs]

@@ -140,6 +140,29 @@ def test_duplicate_yaml_keys_rejected_with_key_and_line(tmp_path, case):
     assert "first at line" in msg
 
 
+def test_yaml_numbers_are_yaml_1_2():
+    """1e-6 a float, `no` a string, 017 decimal (not YAML 1.1's octal 15), an unquoted 2:00:00 a string
+    (not YAML 1.1's sexagesimal 7200), 0x / 0o prefixes as in YAML 1.2."""
+    from dampertwin.design.yaml_io import yaml_load
+    doc = yaml_load("a: 017\nb: 2:00:00\nc: 1:30\nd: 0x1F\ne: 0o17\nf: -1_000\ng: 1e-6\nno: 3\nh: +4\n")
+    assert doc == {"a": 17, "b": "2:00:00", "c": "1:30", "d": 31, "e": 15, "f": -1000, "g": 1e-6, "no": 3, "h": 4}
+    assert all(type(doc[k]) is int for k in "adefh")
+
+
+def test_a_yaml_alias_bomb_is_refused_before_anything_walks_it(tmp_path):
+    """Aliases of aliases (9^9 strings from 1 kB): a config error naming the file, not a memory exhaustion
+    in the first deep copy or JSON dump of it."""
+    from dampertwin.design.yaml_io import ConfigTextError, yaml_load_file
+    lines = ['a0: &a0 ["x","x","x","x","x","x","x","x","x"]']
+    lines += [f"a{i}: &a{i} [" + ",".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 9)]
+    p = tmp_path / "bomb.yaml"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ConfigTextError, match=r"bomb.yaml: not valid YAML: the document expands to more than"):
+        yaml_load_file(p)
+    with pytest.raises(DesignError, match="expands to more than"):
+        load(p)
+
+
 def test_duplicate_key_in_variant_file_rejected(tmp_path):
     p = tmp_path / "v.yaml"
     p.write_text("case: x\nrow: 1\ntitle: t\ncurrent: 1.6\ncurrent: 0.9\noverrides: {}\n")

@@ -369,6 +369,22 @@ def test_sweep_variant_keys_and_row_named_with_the_file(tmp_path, kw, needle):
         check_job(cfg, tmp_path)
 
 
+@pytest.mark.parametrize("kw, needle", [({"tests": "monosine"}, "tests='monosine': expected a list of tests"),
+                                        ({"tests": ["monosine", "nosuch"]}, "expected a list of tests of conf/test/"),
+                                        ({"level": 0.2}, "level=0.2 without factor=")])
+def test_sweep_tests_and_a_level_without_factor_are_refused_before_any_work(kw, needle):
+    """`tests=monosine` (a string, read letter by letter before) and a level that would be ignored."""
+    from dampertwin.sweep import check_job
+
+    cfg = _variant_cfg()
+    cfg.tests = ["monosine", "random"]
+    check_job(cfg, ROOT)  # the plain job passes
+    for k, v in kw.items():
+        cfg[k] = v
+    with pytest.raises(UserError, match=re.escape(needle)):
+        check_job(cfg, ROOT)
+
+
 # ------------------------------------------------------------------ same input, same bytes
 def test_staged_outputs_carry_no_temporary_name():
     sys.path.insert(0, str(ROOT / "stages"))

@@ -245,6 +245,13 @@ def test_cluster_command_checks_the_description(tmp_path, capsys):
     assert f"{bad}: jobs: 0" in capsys.readouterr().err
     assert main(["cluster", "--config", str(tmp_path / "none.yaml"), "--check"]) == 2
     assert "cluster description not found" in capsys.readouterr().err
+    # a directive or value with a line break would add a shell line of its own to the job script
+    for extra in ("job_extra_directives: [\"--exclusive\\nrm -rf $HOME\"]\n", "job_extra_directives: [exclusive]\n",
+                  "account: \"me\\necho x\"\n"):
+        bad.write_text("cores: 2\nmemory: 4GB\nwalltime: '01:00:00'\njobs: 1\n" + extra)
+        assert main(["cluster", "--config", str(bad), "--check"]) == 2
+        err = capsys.readouterr().err
+        assert f"{bad}: {extra.split(':')[0]}:" in err and "Traceback" not in err, err
     if importlib.util.find_spec("dask_jobqueue"):  # with it, the job script; without, test_slurm_without_...
         assert main(["cluster", "--config", str(SLURM), "--check"]) == 0
         assert "#SBATCH --mem=4G" in capsys.readouterr().out

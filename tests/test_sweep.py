@@ -162,3 +162,20 @@ def test_trend_against_the_thesis_simulated_column():
     assert tr.loc[("different_active_valve", "compression"), "agrees"]
     m = trend_metrics(tr.reset_index())
     assert (m["agree"], m["compared"]) == (3, 6)
+
+
+def test_job_names_of_distinct_levels_differ():
+    """Each OFAT level gets its own folder: levels 0.3 % apart never share one (they did when the
+    name rounded the level to whole percent); round levels keep their short names."""
+    from omegaconf import OmegaConf
+
+    from dampertwin.sweep import job_name
+
+    def name(level):
+        return job_name(OmegaConf.create({"variant": {"case": "baseline_1.6"}, "factor": "piston_intake.a",
+                                          "level": level}))
+
+    assert name(0.2) == "baseline_1.6__piston_intake.a@+20%" and name(-0.2) == "baseline_1.6__piston_intake.a@-20%"
+    levels = [0.001, 0.004, 0.0041, 0.2, 0.21, -0.001]
+    assert len({name(v) for v in levels}) == len(levels)
+    assert name(0.001) == "baseline_1.6__piston_intake.a@+0.1%"

@@ -224,7 +224,8 @@ def _take_option(rest: list[str], name: str, what: str) -> str | None:
 
 def _run_design(args) -> int:
     if not Path(args.path).is_file():
-        raise FileNotFoundError(f"{args.path}: design file not found")
+        raise FileNotFoundError(f"{args.path}: " + ("a folder; expected a design YAML file" if Path(args.path).is_dir()
+                                                    else "design file not found"))
     if args.action == "show":
         print(format_table(load(args.path), args.type))  # a bad design: DesignError, exit 2
         return 0
@@ -371,6 +372,10 @@ def _run_kpi(args) -> int:
         meta = {}
     test = args.test or (meta.get("protocol") if isinstance(meta.get("protocol"), str) else None) or "dyno"
     df, _ = read_record(path, test)
+    lacking = [c for c in ("displacement [m]", "force [N]") if c not in df.columns]
+    if lacking:  # a flow-bench or active-valve record: no stroke to cut into half-strokes
+        raise UserError(f"{path}: a {test} record without {' and '.join(repr(c) for c in lacking)}; kpi dyno reads "
+                        f"damper records with the rod's displacement and force (a dyno export, dampertwin import)")
     out = {"file": str(path), "test": test, "setting": meta.get("setting"), "runs": {}}
     for name, g in runs(df):
         try:

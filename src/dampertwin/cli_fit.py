@@ -27,6 +27,9 @@ def parse_param_args(items: list[str]) -> list[dict]:
             raise FitError(f"--param {s!r}: expected name=lo:hi or name=lo:hi:log") from None
         if not (math.isfinite(lo) and math.isfinite(hi)):
             raise FitError(f"--param {s!r}: the bounds must be finite numbers")
+        if scale not in ("lin", "log") or len(parts) > 3:
+            raise FitError(f"--param {s!r}: scale {':'.join(parts[2:])!r}; expected name=lo:hi, name=lo:hi:lin or "
+                           f"name=lo:hi:log")
         key = "key" if "." in name else "name"
         out.append({key: name.strip(), "bounds": [lo, hi], "scale": scale})
     return out
@@ -89,12 +92,61 @@ def check_search_config(doc: dict, where: str, submodel: str) -> None:
     for key in ("input_cutoff", "force_bandwidth"):
         if key in doc and not (_number(doc[key]) and doc[key] > 0):
             raise FitError(f"{where}: {key}: expected a positive frequency in Hz, got {doc[key]!r}")
+    for key in ("ga", "polish", "objective", "static", "determined"):
+        if key in doc and not isinstance(doc[key], dict):
+            raise FitError(f"{where}: {key}: expected a mapping, got {doc[key]!r}")
+    if "polish" in doc:
+        _check_polish(doc["polish"], where)
+    if submodel == "topmount":
+        _check_topmount_keys(doc, where)
     if "bench" in doc:
         b = doc["bench"]
         if not isinstance(b, dict) or set(b) - BENCH_KEYS or not all(_number(v) for v in b.values()) \
                 or not b.get("bench_volume", 1.0) > 0 or not b.get("bench_back_pressure", 0.0) >= 0:
             raise FitError(f"{where}: bench: expected bench_volume [m^3] > 0 and bench_back_pressure [Pa] >= 0, "
                            f"got {b!r}")
+
+
+def _positive(v, integer: bool = False) -> bool:
+    return _number(v) and v > 0 and (not integer or float(v).is_integer())
+
+
+def _check_polish(pol: dict, where: str) -> None:
+    """polish: {starts, max_nfev[, step, min_distance]} (calibration.polish.POLISH_KEYS)."""
+    from .calibration.polish import POLISH_KEYS
+
+    bad = sorted(map(str, set(pol) - set(POLISH_KEYS)))
+    if bad or not {"starts", "max_nfev"} <= set(pol):
+        raise FitError(f"{where}: polish: {pol!r}; expected starts and max_nfev (and optional step, "
+                       f"min_distance), not {', '.join(bad) or 'fewer'}")
+    for k, v in pol.items():
+        if not _positive(v, integer=k in ("starts", "max_nfev")):
+            raise FitError(f"{where}: polish: {k} = {v!r}; expected a positive "
+                           f"{'integer' if k in ('starts', 'max_nfev') else 'number'}")
+
+
+def _check_topmount_keys(doc: dict, where: str) -> None:
+    """A top-mount fit's static / runs / dynamic_run / determined keys (fit_topmount's docstring)."""
+    st = doc.get("static")
+    if st is not None:
+        if set(st) - {"run", "order", "input_cutoff"} or not isinstance(st.get("run"), str):
+            raise FitError(f"{where}: static: {st!r}; expected {{run: LABEL, order: 1..5, input_cutoff: Hz}}")
+        if "order" in st and not (isinstance(st["order"], int) and not isinstance(st["order"], bool)
+                                  and 1 <= st["order"] <= 5):
+            raise FitError(f"{where}: static.order: {st['order']!r}; expected an integer 1..5 (thesis 7.2: 5)")
+        if "input_cutoff" in st and not _positive(st["input_cutoff"]):
+            raise FitError(f"{where}: static.input_cutoff: {st['input_cutoff']!r}; expected a positive frequency in Hz")
+    runs = doc.get("runs")
+    if "runs" in doc and not (isinstance(runs, list) and runs and all(isinstance(r, str) and r for r in runs)):
+        raise FitError(f"{where}: runs: {runs!r}; expected a list of run labels (e.g. [sweep_A0.001_f10])")
+    if "dynamic_run" in doc and not (isinstance(doc["dynamic_run"], str) and doc["dynamic_run"]):
+        raise FitError(f"{where}: dynamic_run: {doc['dynamic_run']!r}; expected a run label")
+    det = doc.get("determined")
+    if det is not None:
+        f = det.get("frequencies", [1.0])  # absent: the documented sweep's (conf/test/topmount.yaml)
+        if set(det) - {"frequencies", "amplitude"} or not (isinstance(f, list) and f and all(_positive(x) for x in f)) \
+                or not _positive(det.get("amplitude", 1.0)) or ("frequencies" in det and "amplitude" not in det):
+            raise FitError(f"{where}: determined: {det!r}; expected {{frequencies: [Hz > 0, ...], amplitude: m > 0}}")
 
 
 def load_search_config(path: str | os.PathLike | None, submodel: str | None = None) -> dict:
@@ -113,12 +165,16 @@ def load_search_config(path: str | os.PathLike | None, submodel: str | None = No
 
 
 def _merge_items(cfg_items: list | None, cli_items: list[dict]) -> list:
-    """Command-line items replace config items of the same parameter."""
+    """Command-line items replace config items of the same parameter (a name within the group, e.g.
+    ``a``, is the same parameter as a key ending in it, e.g. ``piston_intake.a``)."""
     def ident(it):
-        return it.get("key", it.get("name")) if isinstance(it, dict) else None
+        return str(it.get("key", it.get("name"))) if isinstance(it, dict) else None
 
-    names = {ident(i) for i in cli_items}
-    return [i for i in (cfg_items or []) if ident(i) not in names] + cli_items
+    def same(a, b):
+        return a == b or ("." not in a and b.endswith("." + a)) or ("." not in b and a.endswith("." + b))
+
+    cli = [ident(i) for i in cli_items]
+    return [i for i in (cfg_items or []) if ident(i) is None or not any(same(ident(i), c) for c in cli)] + cli_items
 
 
 # ---------------------------------------------------------------- statistics
@@ -197,7 +253,11 @@ def run_fit_cli(args) -> tuple[Path, list[str]]:
     elif args.submodel == "damper":
         if args.current is not None:
             raise FitError("--current: a damper fit takes each record's current (a passive design reads none)")
-        res = fit_damper([p for p in args.data.split(",") if p], **kw, **ga)
+        files = [p for p in args.data.split(",") if p]
+        twice = sorted({p for p in files if [Path(q).resolve() for q in files].count(Path(p).resolve()) > 1})
+        if twice:  # the same record twice would weigh it double without a word
+            raise FitError(f"--data: {', '.join(twice)} given more than once; give each record once")
+        res = fit_damper(files, **kw, **ga)
     elif args.submodel == "compliance":
         res = fit_compliance(args.data, current=args.current, **kw, **ga)
     else:

@@ -33,10 +33,24 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def _plain_json(o):
+    """``o`` as standard JSON values: numpy scalars / arrays as numbers / lists, a non-finite number
+    (an unbounded interval end, an undefined ratio) as null (RFC 8259 has no Infinity or NaN)."""
+    if isinstance(o, dict):
+        return {k: _plain_json(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple, np.ndarray)):
+        return [_plain_json(v) for v in (o.tolist() if isinstance(o, np.ndarray) else o)]
+    if isinstance(o, (float, np.floating)):
+        return float(o) if np.isfinite(o) else None
+    if isinstance(o, np.bool_):
+        return bool(o)
+    return int(o) if isinstance(o, np.integer) else o
+
+
 def _write_json(path: Path, obj) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(obj, indent=2, sort_keys=False, default=float) + "\n")
+    tmp.write_text(json.dumps(_plain_json(obj), indent=2, sort_keys=False, default=float, allow_nan=False) + "\n")
     os.replace(tmp, path)
     return path
 
@@ -155,6 +169,23 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
     return result
 
 
+def _check_current(current: float, records) -> None:
+    """--current [A] against each run's recorded current (when the record has one): a FitError naming the
+    file and run where they differ by more than io.record.CURRENT_TOL."""
+    from .io import runs
+    from .io.record import CURRENT_TOL
+
+    for path, df in records:
+        if "current [A]" not in df.columns:
+            continue
+        for name, g in runs(df):
+            i = float(np.mean(g["current [A]"].to_numpy()))
+            if np.any(g["current [A]"].to_numpy() != 0) and abs(i - current) > CURRENT_TOL:  # zeros: none recorded
+                raise FitError(f"{path}" + (f" run {name!r}" if name else "") + f": recorded at {i:.3g} A; --current "
+                               f"{current:g} A would simulate it at another current (leave --current out: each "
+                               f"run's own current is used)")
+
+
 def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, config=None, seed=0,
                    current: float | None = None, population=None, generations=None, scheduler=None) -> dict:
     """Fit gas content and oil bulk modulus (default) on a damper-level sine
@@ -162,6 +193,8 @@ def fit_compliance(data, *, design=None, bounds=None, predict=(), out=None, conf
     d, cfg = _load(design), dict(config or {})
     items = bounds or cfg.get("parameters") or _study_doc("compliance.yaml")["parameters"]
     frames = [read_fit_record(p, "compliance" if current is None else None) for p in [data, *predict]]
+    if current is not None:  # --current stands in for a record without a current, never against its own
+        _check_current(current, zip(map(str, [data, *predict]), frames))
     result, problem, sims = cf.fit_compliance_records(
         d, list(zip(map(str, [data, *predict]), frames)), items, cutoff=float(cfg.get("input_cutoff", 1000.0)),
         force_bandwidth=_force_bandwidth(cfg, "compliance.yaml"), settings=cf.ga_settings(cfg, population, generations),

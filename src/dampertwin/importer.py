@@ -119,7 +119,11 @@ def _read_json_matrix(src: Path, spec) -> pd.DataFrame:
 
     if not isinstance(spec, dict) or "matrix" not in spec or not isinstance(spec.get("columns"), list):
         raise MappingError(f"{src}: a JSON source needs 'json: {{matrix: KEY, columns: [NAME, ...]}}' in the mapping")
-    doc = json.loads(src.read_text())
+    try:
+        doc = json.loads(src.read_text(encoding="utf-8"))
+    except ValueError as e:  # JSONDecodeError and UnicodeDecodeError
+        raise MappingError(f"{src}: not a UTF-8 JSON file ({' '.join(str(e).split())[:200]}); expected a JSON object "
+                           f"holding the matrix") from None
     key, names = spec["matrix"], [str(c) for c in spec["columns"]]
     if not isinstance(doc, dict) or key not in doc:
         raise MappingError(f"{src}: no key {key!r} (keys: {', '.join(map(str, doc)) if isinstance(doc, dict) else '-'})")
@@ -216,6 +220,10 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
         x, si = to_si([_number(spec["value"], f"{label}: value")], spec["unit"], where=label)
         if q in io.UNITS and io.UNITS[q] != si:
             raise MappingError(f"{label}: unit {spec['unit']!r} is a {si} unit but {q!r} needs {io.UNITS[q]!r}")
+        if f"{q} [{si}]" in out:  # a constant is for a quantity the file lacks, never in place of a measured one
+            src = next(str(c) for c, sp in cols.items() if isinstance(sp, dict) and str(sp.get("quantity")).strip() == q)
+            raise MappingError(f"{label}: quantity {q!r} is already mapped from column {src!r}; 'constants:' is for "
+                               f"quantities the file lacks (drop the constant or the column's entry)")
         out[f"{q} [{si}]"] = np.full(n, x[0])
     res = pd.DataFrame(out)
     if mapping.get("run") is not None and "run" not in res:  # one label for the whole file

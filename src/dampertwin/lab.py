@@ -202,16 +202,23 @@ INCOMPLETE = ".incomplete"  # the marker file of a lab folder being written (see
 
 
 def _check_other_sample(out: Path, sample_doc: dict) -> None:
-    """OUT may hold records of this sample (a rerun, or other tests of it), not
-    another's: they would mix two parts in one folder without a word."""
+    """OUT may hold records of this sample (a rerun, or other tests of it), nothing else: another
+    sample's records would mix two parts in one folder without a word, and a record the lab did not
+    write (an imported measurement, a file it cannot read) could be overwritten by synthetic data."""
     from .io import read_meta
 
     for f in sorted(out.glob("*/*.parquet")) if out.is_dir() else []:
         try:
-            h = read_meta(f).get("sample_hash")
-        except Exception:  # not a readable record: not the lab's, left to whoever reads it
-            continue
-        if h and h != sample_doc.get("_hash"):
+            meta = read_meta(f)
+        except Exception as e:  # not a readable record: never the lab's to overwrite
+            raise LabError(f"--out {out}: holds {f}, which is not a readable record ({e}); write the lab into "
+                           f"an empty folder or one of this sample's") from None
+        h = meta.get("sample_hash") if isinstance(meta, dict) else None
+        if not h:
+            what = "an imported measurement" if isinstance(meta, dict) and meta.get("imported") else "a record"
+            raise LabError(f"--out {out}: holds {f}, {what} the lab did not write (no sample hash); write the lab "
+                           f"into an empty folder or one of this sample's ({sample_doc.get('_path')})")
+        if h != sample_doc.get("_hash"):
             raise LabError(f"--out {out}: holds records of another sample ({f}, sample hash {h}); write this "
                            f"sample ({sample_doc.get('_path')}) into an empty folder")
 
@@ -254,26 +261,37 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
     _check_other_sample(out, sample_doc)
     out.mkdir(parents=True, exist_ok=True)
     marker = out / INCOMPLETE  # removed once every record is written: a killed run leaves it (readers refuse)
-    marker.write_text(f"a dampertwin lab run of {sample} is writing this folder, or was stopped before it "
-                      f"finished: its records may be partial or mixed with an earlier run's; run it again\n")
+    # the records a stopped earlier run left unwritten stay pending until a run writes them
+    header = (f"a dampertwin lab run of {sample} is writing this folder, or was stopped before it finished: "
+              f"its records may be partial or mixed with an earlier run's; run it again. Records not written yet:")
+    earlier = marker.read_text().splitlines()[1:] if marker.is_file() else []
+    pending = dict.fromkeys([*earlier, *(f"{t}/{c}" for t, c in items)])
+    marker.write_text("\n".join([header, *pending]) + "\n")
     # longest first (module random tests), so the workers finish together
     order = sorted(range(len(items)), key=lambda i: items[i][0] not in ("random", "verification", "training"))
     workers = min(len(items), workers or os.cpu_count() or 1)
     args = [(str(conf), sample_doc, str(nominal_path), *items[i], seed, str(out)) for i in order]
     paths: dict[int, str] = {}
     bar = tqdm(total=len(items), desc="lab", disable=not progress)
+
+    def done(i: int, path: str) -> None:
+        paths[i] = path
+        pending.pop(f"{items[i][0]}/{items[i][1]}", None)
+        if pending:
+            marker.write_text("\n".join([header, *pending]) + "\n")
+        bar.update()
+
     if workers <= 1:
         for i, a in zip(order, args):
-            paths[i] = _measure_and_write(*a)
-            bar.update()
+            done(i, _measure_and_write(*a))
     else:
         with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
             futs = {pool.submit(_measure_and_write, *a): i for i, a in zip(order, args)}
             for f in as_completed(futs):
-                paths[futs[f]] = f.result()
-                bar.update()
+                done(futs[f], f.result())
     bar.close()
-    marker.unlink()
+    if not pending:  # else an earlier stopped run's records this run did not write: still incomplete
+        marker.unlink()
     return [Path(paths[i]) for i in range(len(items))]
 
 

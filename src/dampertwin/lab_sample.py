@@ -40,6 +40,21 @@ TEMPERATURE_DEFAULTS = {"start": 0.0, "start_scatter": 0.0, "drift": 0.0, "scatt
 TEMPERATURE = "oil temperature [K]"
 
 
+# A real rig's plausible extremes: a value beyond one is a unit slip (ms for s, Pa for bar), not a rig the tests
+# could run on (records the project's reader refuses, a solver that fails with no key named).
+BENCH_LIMITS = {
+    ("actuator", "gain"): (0.5, 2.0),            # [-] static gain of the position loop
+    ("actuator", "delay"): (0.0, 0.05),          # [s] loop delay (servo-hydraulic rigs: ~1 ms)
+    ("temperature", "start"): (-60.0, 120.0),    # [K] oil temperature above the design's oil.T at a run's start
+    ("temperature", "drift"): (-10.0, 10.0),     # [K/min] over the test sequence
+    ("precharge", "offset"): (-2.0e5, 2.0e5),    # [Pa] the gas fill's error (+-2 bar)
+}
+CHANNEL_NOISE_MAX = {  # [SI] one-sigma noise or ADC step of a usable transducer (~1 % of the tests' ranges)
+    "displacement [m]": 1.0e-3, "force [N]": 500.0, "rod acceleration [m/s^2]": 50.0, "flow [m^3/s]": 1.0e-5,
+    "dp [Pa]": 1.0e5, "oil temperature [K]": 5.0, "top mount deflection [m]": 1.0e-4,
+}
+
+
 class LabError(UserError):
     """A lab description (hidden sample) is invalid, or a lab run failed."""
 
@@ -70,8 +85,6 @@ def load_sample(path: str | Path) -> dict:
         bad.append(f"generator: {doc['generator']!r}; expected {LAB_VERSION!r}")
     if not isinstance(doc.get("seed_offset", 0), int) or isinstance(doc.get("seed_offset", 0), bool):
         bad.append(f"seed_offset: {doc['seed_offset']!r}; expected an integer")
-    if "nominal" in doc and not isinstance(doc["nominal"], str):
-        bad.append("nominal: expected a path (relative to the sample file) of a design YAML")
     for k, f in doc["factors"].items():
         if not (_finite(f) and f > 0):
             bad.append(f"factors.{k}: {f!r}; expected a positive finite factor")
@@ -99,6 +112,8 @@ def _key_problems(doc: dict, required: tuple) -> list[str]:
 def _finish_sample(path: Path, doc: dict, bad: list[str]) -> dict:
     """Both generations: the benches checked, every problem raised at once
     naming the file, then the sample's path and content hash recorded."""
+    if "nominal" in doc and not isinstance(doc["nominal"], str):
+        bad.append("nominal: expected a path (relative to the sample file) of a design YAML")
     bad += _check_benches(doc["benches"])
     if bad:
         raise LabError(f"{path}: " + "; ".join(bad))
@@ -213,6 +228,23 @@ def _check_benches(b: dict) -> list[str]:
         bad.append("benches.precharge: offset [Pa] finite, scatter a one-sigma relative value >= 0")
     if b.get("scatter", {}).get("actuator_gain", 0.0) < 0:
         bad.append("benches.scatter.actuator_gain: one-sigma relative value >= 0")
+    return bad or _plausible_rig(b)
+
+
+def _plausible_rig(b: dict) -> list[str]:
+    """BENCH_LIMITS and CHANNEL_NOISE_MAX on a bench description whose keys and kinds are valid."""
+    bad = []
+    for (sect, q), (lo, hi) in BENCH_LIMITS.items():
+        v = b.get(sect, {}).get(q)
+        if v is not None and not lo <= v <= hi:
+            bad.append(f"benches.{sect}.{q}: {v!r}; expected {lo:g} to {hi:g} (a real rig's range; a unit slip?)")
+    levels = [(f"noise.{ch}", ch, v) for ch, v in b.get("noise", {}).items()]
+    levels += [(f"sensors.{ch}.resolution", ch, spec["resolution"]) for ch, spec in b.get("sensors", {}).items()
+               if "resolution" in spec]
+    for where, ch, v in levels:
+        if v > CHANNEL_NOISE_MAX[ch]:
+            bad.append(f"benches.{where}: {v!r}; expected at most {CHANNEL_NOISE_MAX[ch]:g} (a usable transducer's "
+                       f"noise / ADC step; a unit slip?)")
     return bad
 
 

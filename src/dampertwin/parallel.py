@@ -97,7 +97,8 @@ CLUSTER_KEYS = {  # key: (types, required, meaning)
     "account": ((str, type(None)), False, "SLURM account (null: none)"),
     "processes": ((int,), False, "Dask worker processes per job (an integer >= 1, default 1)"),
     "jobs": ((int,), True, "SLURM jobs to start (an integer >= 1; workers = jobs x processes)"),
-    "job_extra_directives": ((list,), False, "extra #SBATCH options, e.g. ['--exclusive']"),
+    "job_extra_directives": ((list,), False, "extra #SBATCH options, one line each starting with '-', "
+                                             "e.g. ['--exclusive']"),
 }
 
 
@@ -123,7 +124,9 @@ def check_cluster_config(doc, where: str) -> dict:
         bad = bad or (int in types and isinstance(v, int) and v < 1)
         bad = bad or (k == "memory" and not re.fullmatch(r"\d+(\.\d+)?\s*[KMGT]i?B", str(v)))
         bad = bad or (k == "walltime" and not re.fullmatch(r"(\d+-)?\d{1,3}:\d{2}:\d{2}", str(v)))
-        bad = bad or (k == "job_extra_directives" and not all(isinstance(x, str) for x in v))
+        bad = bad or (k == "job_extra_directives" and not all(isinstance(x, str) and x.startswith("-") for x in v))
+        # one line each: a line break would put a line of its own into the job script
+        bad = bad or any(isinstance(x, str) and any(c in x for c in "\r\n") for x in (v if isinstance(v, list) else [v]))
         if bad:
             errors.append(f"{where}: {k}: {v!r}; expected {meaning}")
     if errors:

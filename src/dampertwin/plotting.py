@@ -6,6 +6,8 @@ the design drawn and the measurement source."""
 
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -44,8 +46,10 @@ def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: 
     instead of the nominal baseline + variant; ``data`` (a measured folder,
     <test>/<file>.parquet) is overlaid when given."""
     vpath = conf / "variant" / f"{case}.yaml"
+    known = ", ".join(sorted(p.stem for p in (conf / "variant").glob("*.yaml")))
+    if not re.fullmatch(r"\w[\w.-]*", case):  # a file name, never a path out of --out
+        raise FileNotFoundError(f"design case {case!r}: expected the name of a file of {conf / 'variant'}; known: {known}")
     if not vpath.is_file():
-        known = ", ".join(sorted(p.stem for p in (conf / "variant").glob("*.yaml")))
         raise FileNotFoundError(f"no design case {case!r} ({vpath} missing); known: {known}")
     variant = load_variant(vpath)
     if design_path is not None:
@@ -58,14 +62,29 @@ def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: 
     tag = f"\n{dlabel}; {_source_label(data)}"
     protocols = load_all(conf / "test")
     out = out / case
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
+    figures: list = []  # every figure drawn first, written at the end: a bad record leaves the old set whole
 
     def save(fig, name):
-        p = out / f"{name}.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+        figures.append((fig, name))
+
+    try:
+        _draw(case, design, variant, data, tag, protocols, save)
+        out.mkdir(parents=True, exist_ok=True)
+        written = []
+        for fig, name in figures:
+            p = out / f"{name}.png"
+            tmp = out / f".{name}.png.tmp{os.getpid()}"
+            fig.savefig(tmp, dpi=110, format="png")
+            os.replace(tmp, p)
+            written.append(p)
+        return written
+    finally:
+        for fig, _ in figures:
+            plt.close(fig)
+
+
+def _draw(case: str, design, variant, data: Path | None, tag: str, protocols: dict, save) -> None:
+    """The case's figures (P-Q, curving, mono-sine, PSD), each handed to ``save(fig, name)``."""
 
     # P-Q curves: the valves of this case (alternative valves where the case changes them)
     fb = protocols["flowbench"]
@@ -108,4 +127,3 @@ def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: 
         run = next(r for r in build_runs(protocols["random"], 0) if abs(r.current - variant.current) < 1e-9)
         sim_r = report.frame(report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate))
     save(report.psd_figure(sim_r, rnd, f"{case}: random road noise at {variant.current:g} A" + tag), "psd")
-    return written

@@ -77,7 +77,7 @@ def simulate_test(design_path: str | Path, test: str, out: str | Path, *, case: 
     """Simulate the chosen runs of a standard test; returns [parquet, png]."""
     design_path, conf, out = Path(design_path), Path(conf), Path(out)
     if not design_path.is_file():
-        raise UserError(f"{design_path}: design file not found; expected a design YAML "
+        raise UserError(f"{design_path}: {'a folder' if design_path.is_dir() else 'design file not found'}; expected a design YAML "
                         "(e.g. conf/design/baseline.yaml)")
     proto_path = conf / "test" / f"{test}.yaml"
     if not proto_path.is_file():

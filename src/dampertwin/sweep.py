@@ -91,7 +91,7 @@ def job_name(cfg: DictConfig) -> str:
     name = str(case) if isinstance(case, str) and case else "invalid_variant"
     if cfg.get("factor"):
         try:
-            name += f"__{cfg.factor}@{_level(cfg):+.0%}"
+            name += f"__{cfg.factor}@{100 * _level(cfg):+.10g}%"  # 10 digits: distinct levels, distinct folders
         except UserError:
             name += f"__{cfg.factor}@invalid-level"
     return re.sub(r"[^\w.@+%=-]", "_", name)  # one folder, never a path
@@ -158,6 +158,12 @@ def check_job(cfg: DictConfig, root: Path) -> None:
     seed = cfg.get("seed")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
         errors.append(f"seed={seed!r}: expected an integer 0 .. {2**32 - 1}")
+    tests, known = cfg.get("tests"), sorted(p.stem for p in (root / "conf" / "test").glob("*.yaml"))
+    if not OmegaConf.is_list(tests) or not tests or any(not isinstance(t, str) or t not in known for t in tests):
+        errors.append(f"tests={tests!r}: expected a list of tests of conf/test/ (e.g. 'tests=[monosine,random]'; "
+                      f"known: {', '.join(known)})")
+    if cfg.get("level") is not None and not cfg.get("factor"):
+        errors.append(f"level={cfg.get('level')!r} without factor=: a level scales a design key; give factor=GROUP.NAME")
     if errors:
         raise UserError(errors)
 

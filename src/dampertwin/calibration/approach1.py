@@ -91,6 +91,11 @@ def specs_from_config(design: Design, items: list, prefix: str = "",
             raise UserError(f"{label}: a log scale needs bounds of one sign, neither zero (log of the magnitude "
                             f"for a negative parameter, e.g. a spring exponent d of eq. 4.19), got [{lo}, {hi}]")
         specs.append(ParamSpec(key, lo, hi, it.get("scale", "lin")))
+    keys = [sp.key for sp in specs]
+    dup = sorted({k for k in keys if keys.count(k) > 1})
+    if dup:  # by name and by key, or twice: one parameter is one gene
+        raise UserError(f"{where}: {', '.join(dup)} searched more than once (items "
+                        f"{', '.join(str(i) for i, k in enumerate(keys) if k in dup)}); give each parameter once")
     return specs
 
 

@@ -301,6 +301,10 @@ def fit_topmount_records(design: Design, frames, items, *, cutoff: float, force_
     specs = search_specs(design, items, "top_mount.", where, nuis)
     static = static or {}
     names = [n for n, _ in runs(frames[0][1])]
+    missing = [r for r in [*(want or []), *([static["run"]] if static.get("run") is not None else [])] if r not in names]
+    if missing:  # a run named in the config that the fitted record lacks: never silently skipped
+        raise FitError(f"{frames[0][0]}: no run {', '.join(map(repr, missing))} (runs: {', '.join(map(str, names))}); "
+                       f"the config's runs / dynamic_run / static.run name runs of the fitted record")
     files = []
     for p, f in frames:
         cases = []

@@ -28,7 +28,7 @@ from .parse_effects import _parse_effect_parameters, _parse_effects
 from .parse_params import _check_physics, _fill_placeholders, _parse_constants, _parse_parameters
 from .pqmap import PQMap, map_from_rows, write_map
 from .schema import BY_NUMBER, EFFECT_PARAMETERS, EFFECTS, PARAMETERS, TYPES
-from .yaml_io import (MAX_CONFIG_BYTES, ConfigTextError, _Dumper, _Loader, read_config_text, yaml_error_line, yaml_load,
+from .yaml_io import (MAX_CONFIG_BYTES, ConfigTextError, _Dumper, read_config_text, yaml_error_line, yaml_load,
                       yaml_load_file)
 
 TOP_KEYS = ("design", "description", "architecture", "parameters", "constants", "effects", "effect_parameters",
@@ -353,7 +353,7 @@ def load(path: str | os.PathLike, *, map_dirs: tuple | list = ()) -> Design:
     path = Path(path)
     where = str(path)
     if not path.is_file():
-        raise DesignError([f"{where}: file not found"])
+        raise DesignError([f"{where}: " + ("a folder; expected a design YAML file" if path.is_dir() else "file not found")])
     try:
         doc = yaml_load_file(path)
     except ConfigTextError as e:
@@ -364,7 +364,7 @@ def load(path: str | os.PathLike, *, map_dirs: tuple | list = ()) -> Design:
 def loads(text: str, base_dir: str | os.PathLike = ".", where: str = "<string>", *,
           map_dirs: tuple | list = ()) -> Design:
     try:
-        doc = yaml.load(text, Loader=_Loader)
+        doc = yaml_load(text)
     except yaml.YAMLError as e:
         raise DesignError([f"{where}: not valid YAML: {yaml_error_line(e)}"]) from None
     except RecursionError:

@@ -28,10 +28,25 @@ _FLOAT_RE = re.compile(
     re.X,
 )
 _Loader.yaml_implicit_resolvers = {
-    k: [(tag, rx) for tag, rx in v if tag not in ("tag:yaml.org,2002:float", "tag:yaml.org,2002:bool")]
+    k: [(tag, rx) for tag, rx in v if tag not in ("tag:yaml.org,2002:float", "tag:yaml.org,2002:bool",
+                                                 "tag:yaml.org,2002:int")]
     for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()
 }
 _Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_RE, list("-+0123456789."))
+# YAML 1.2 integers: decimal (017 is 17, not YAML 1.1's octal 15), 0x hex, 0o octal; no YAML 1.1
+# sexagesimal (an unquoted 2:00:00 is the string "2:00:00", not 7200)
+_INT_RE = re.compile(r"^(?:[-+]?[0-9][0-9_]*|0x[0-9a-fA-F_]+|0o[0-7_]+)$")
+_Loader.add_implicit_resolver("tag:yaml.org,2002:int", _INT_RE, list("-+0123456789"))
+
+
+def _construct_int(loader, node) -> int:
+    v = loader.construct_scalar(node).replace("_", "")
+    sign, v = (-1, v[1:]) if v[:1] == "-" else (1, v.lstrip("+"))
+    base = 16 if v.startswith("0x") else 8 if v.startswith("0o") else 10
+    return sign * int(v[2:] if base != 10 else v, base)
+
+
+_Loader.add_constructor("tag:yaml.org,2002:int", _construct_int)
 # YAML 1.2 booleans only: an unquoted `no: 1` key is the string "no".
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF")
@@ -60,16 +75,32 @@ def _construct_mapping_unique(loader, node, deep=False):
 _Loader.construct_mapping = _construct_mapping_unique  # type: ignore[method-assign]
 
 
+MAX_YAML_VALUES = 200_000  # values a config may expand to: aliases repeating aliases (a "billion laughs") stop here
+
+
 def yaml_load(text: str):
     """YAML with 1.2 numbers and booleans (``1e-6`` is a float, ``no`` a
-    string) and unique mapping keys; used for every config file of the project."""
-    return yaml.load(text, Loader=_Loader)
+    string) and unique mapping keys; used for every config file of the project.
+    A document expanding to more than MAX_YAML_VALUES values is a YAMLError."""
+    doc = yaml.load(text, Loader=_Loader)
+    stack, n = [doc], 0
+    while stack:  # aliases share objects here; every later walk (a deep copy, JSON) would expand them
+        o = stack.pop()
+        n += 1
+        if n > MAX_YAML_VALUES:
+            raise yaml.YAMLError(f"the document expands to more than {MAX_YAML_VALUES} values (aliases of "
+                                 f"aliases?); expected a config file")
+        if isinstance(o, dict):
+            stack.extend(o.values())
+        elif isinstance(o, list):
+            stack.extend(o)
+    return doc
 
 
 def yaml_error_line(e: Exception) -> str:
     """One line for a YAML error: 'line N: problem' (no echo of the file)."""
     mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
-    problem = getattr(e, "problem", None) or getattr(e, "context", None) or type(e).__name__
+    problem = getattr(e, "problem", None) or getattr(e, "context", None) or str(e) or type(e).__name__
     return f"line {mark.line + 1}, column {mark.column + 1}: {problem}" if mark is not None else str(problem)
 
 
@@ -107,7 +138,7 @@ def yaml_load_file(path: str | os.PathLike, max_bytes: int = MAX_CONFIG_BYTES):
     for unreadable text or invalid YAML (duplicate keys included)."""
     text = read_config_text(path, max_bytes)
     try:
-        return yaml.load(text, Loader=_Loader)
+        return yaml_load(text)
     except yaml.YAMLError as e:
         raise ConfigTextError(f"{path}: not valid YAML: {yaml_error_line(e)}") from None
     except RecursionError:

@@ -59,7 +59,8 @@ def load_design(path: Path, conf: Path):
     """The design under test; unknown keys, bad values or a missing file
     are a DiscrepancyError naming the file."""
     if not path.is_file():
-        raise DiscrepancyError(f"{path}: design file not found")
+        raise DiscrepancyError(f"{path}: " + ("a folder; expected a design YAML file" if path.is_dir()
+                                              else "design file not found"))
     try:
         return load(path, map_dirs=[conf / "design"])
     except DesignError as e:

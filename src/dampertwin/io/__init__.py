@@ -110,8 +110,21 @@ def _json_default(o):
 
 
 def read_meta(path: str | os.PathLike) -> dict:
-    md = pq.read_schema(path).metadata or {}
-    return json.loads(md[META_KEY]) if META_KEY in md else {}
+    """A record's dampertwin metadata (a JSON object in the Parquet schema; {} when it has none);
+    metadata that is no JSON object is a DataError naming the file."""
+    try:
+        md = pq.read_schema(path).metadata or {}
+    except (OSError, ValueError) as e:  # missing, a folder, not Parquet (pyarrow's ArrowInvalid is a ValueError)
+        raise DataError([f"{path}: cannot read: {' '.join(str(e).split())[:300]}"]) from None
+    if META_KEY not in md:
+        return {}
+    try:
+        doc = json.loads(md[META_KEY])
+    except ValueError as e:  # JSONDecodeError and UnicodeDecodeError
+        raise DataError([f"{path}: metadata {META_KEY.decode()!r} is not JSON ({e}); expected a JSON object"]) from None
+    if not isinstance(doc, dict):
+        raise DataError([f"{path}: metadata {META_KEY.decode()!r} is a JSON {type(doc).__name__}; expected a JSON object"])
+    return doc
 
 
 def read_frame(path: str | os.PathLike, protocol: str | None = None, *,
@@ -187,6 +200,8 @@ def read_table(path: str | os.PathLike, csv_kw: dict | None = None) -> tuple[pd.
         else:
             df = pd.read_csv(path, **(csv_kw or {}))
             meta = {}
+    except DataError:
+        raise
     except Exception as e:  # unreadable file: report it, never a raw traceback
         raise DataError([f"{where}: cannot read: {' '.join(str(e).split())[:300]}"]) from None
     if len(df) == 0:
