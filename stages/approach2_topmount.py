@@ -48,7 +48,7 @@ def figure(path, d, fitted, rec, coef, kept: str, cutoff: float, name: str) -> N
                  label=f"fitted model, last {PLOT_S:g} s (static curve + rubber dynamics)")
     xs = np.linspace(X.min(), X.max(), 200)
     for label, c, st in (("nominal F_LD (static part)", d["top_mount.F_LD"], ":"),
-                         (f"fitted F_LD (static part alone; {kept})", coef, "-.")):
+                         (f"F_LD kept: {kept} (static part alone)", coef, "-.")):
         axes[1].plot(1e3 * xs, sum(ck * xs ** (k + 1) for k, ck in enumerate(c)), st, color="black" if st == "-." else None,
                      label=label)
     axes[0].set(xlabel="time [s]", ylabel="force [N]", title=f"module test {name}: load cell, last {PLOT_S:g} s (fig. 7.4a)")

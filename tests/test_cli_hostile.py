@@ -226,7 +226,7 @@ def test_a_stopped_lab_run_leaves_a_marker_the_workflow_refuses(tmp_path, monkey
     stop, calls["n"] = False, 0
     lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=[("topmount", "baseline")], workers=1,
                 progress=False)
-    assert (tmp_path / "o" / ".incomplete").read_text().splitlines()[1:] == ["friction/baseline"]
+    assert (tmp_path / "o" / ".incomplete").read_text().splitlines()[2:] == ["friction/baseline"]
     lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=only, workers=1, progress=False)
     assert not (tmp_path / "o" / ".incomplete").exists()
 
@@ -311,6 +311,12 @@ def test_a_lab_folder_holding_an_imported_measurement_is_refused_and_kept(tmp_pa
         lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=[("friction", "baseline")],
                     workers=1, progress=False)
     assert rec.read_bytes() == before and not (tmp_path / "o" / ".incomplete").exists()
+    rec.write_bytes(b"garbage")  # nor over a file it cannot read; named in one line
+    with pytest.raises(lab.LabError) as ei:
+        lab.run_lab(ROOT / "conf" / "lab" / "sample.yaml", tmp_path / "o", only=[("friction", "baseline")],
+                    workers=1, progress=False)
+    assert f"holds {rec}, which is not a readable record (cannot read:" in str(ei.value)
+    assert "\n" not in str(ei.value) and rec.read_bytes() == b"garbage"
 
 
 @pytest.mark.parametrize("opt", ["--data", "--design"])
@@ -328,6 +334,14 @@ def test_a_fit_whose_output_folder_holds_an_input_is_refused_and_the_input_kept(
                  "--population", "4", "--generations", "1", "--out", str(out)]) == 2
     assert f"holds the {opt} file" in _err(capsys)
     assert all(p.read_bytes() == b for p, b in kept.items()) and not (out / "fit.json").exists()
+    # an input deeper below OUT is never written over (the fit writes directly in OUT): accepted
+    from argparse import Namespace
+
+    from dampertwin.cli_checks import check_args
+    deep = write_frame(tmp_path / "sub" / "piston_intake.parquet", flow("piston_intake"),
+                       {"protocol": "flowbench", "synthetic": True})
+    check_args(Namespace(cmd="fit", submodel="valve", valve="piston_intake", data=str(deep), predict=[],
+                         design=str(ROOT / "conf" / "design" / "baseline.yaml"), bounds=None, out=str(tmp_path)))
 
 
 def test_a_searched_parameter_given_by_key_and_by_name_is_one_line_or_replaced():
@@ -341,10 +355,13 @@ def test_a_searched_parameter_given_by_key_and_by_name_is_one_line_or_replaced()
     items = [{"key": "piston_intake.a", "bounds": [50.0, 500.0]}, {"name": "a", "bounds": [60.0, 600.0]}]
     with pytest.raises(Exception, match=r"b.yaml: piston_intake.a searched more than once \(items 0, 1\)"):
         specs_from_config(d, items, prefix="piston_intake.", where="b.yaml")
-    merged = _merge_items([{"name": "a", "bounds": [60.0, 600.0]}, {"name": "c", "bounds": [-90.0, -10.0]}],
-                          [{"key": "piston_intake.a", "bounds": [50.0, 500.0]}])
+    cfg = [{"name": "a", "bounds": [60.0, 600.0]}, {"name": "c", "bounds": [-90.0, -10.0]}]
+    merged = _merge_items(cfg, [{"key": "piston_intake.a", "bounds": [50.0, 500.0]}], "piston_intake.")
     assert merged == [{"name": "c", "bounds": [-90.0, -10.0]}, {"key": "piston_intake.a", "bounds": [50.0, 500.0]}]
     specs_from_config(d, merged, prefix="piston_intake.", where="b.yaml")  # one gene each
+    # another valve's `a` is another parameter: it replaces nothing of this fit's
+    other = _merge_items(cfg, [{"key": "piston_rebound.a", "bounds": [50.0, 500.0]}], "piston_intake.")
+    assert other == [*cfg, {"key": "piston_rebound.a", "bounds": [50.0, 500.0]}]
 
 
 def test_a_compliance_current_against_the_records_is_refused_before_the_fit(tmp_path, capsys):
@@ -455,7 +472,7 @@ def test_param_scale_twice_given_records_and_a_folder_for_a_design_are_one_line(
                  "--out", str(tmp_path / "o")]) == 2
     assert "--param 'F_c=1:5:foo': scale 'foo'; expected" in _err(capsys)
     rec = write_frame(tmp_path / "d.parquet", device(), {"synthetic": True})
-    assert main(["fit", "damper", "--data", f"{rec},{tmp_path / '.' / 'd.parquet'}", "--out", str(tmp_path / "o")]) == 2
+    assert main(["fit", "damper", "--data", f"{rec},{tmp_path}/./d.parquet", "--out", str(tmp_path / "o")]) == 2
     assert "given more than once; give each record once" in _err(capsys)
     assert main(["design", "check", str(tmp_path)]) == 2
     assert f"{tmp_path}: a folder; expected a design YAML file" in _err(capsys)

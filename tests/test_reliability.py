@@ -147,6 +147,13 @@ def test_yaml_numbers_are_yaml_1_2():
     doc = yaml_load("a: 017\nb: 2:00:00\nc: 1:30\nd: 0x1F\ne: 0o17\nf: -1_000\ng: 1e-6\nno: 3\nh: +4\n")
     assert doc == {"a": 17, "b": "2:00:00", "c": "1:30", "d": 31, "e": 15, "f": -1000, "g": 1e-6, "no": 3, "h": 4}
     assert all(type(doc[k]) is int for k in "adefh")
+    assert yaml_load("w: 0x_\nv: 0o_\n") == {"w": "0x_", "v": "0o_"}  # a prefix without digits: text, no crash
+    # the design dumper quotes a string this loader would read as a number: it loads back a string
+    import yaml as pyyaml
+
+    from dampertwin.design.yaml_io import _Dumper
+    strings = {"a": "09", "b": "0o17", "c": "1e-6", "d": "2:00:00", "e": "abc"}
+    assert yaml_load(pyyaml.dump(strings, Dumper=_Dumper)) == strings
 
 
 def test_a_yaml_alias_bomb_is_refused_before_anything_walks_it(tmp_path):

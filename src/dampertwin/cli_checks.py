@@ -93,11 +93,11 @@ def check_args(args) -> None:
             raise ArgumentError(f"--valve {args.valve!r}: expected one of {', '.join(VALVES)}")
         data = args.data.split(",") if args.submodel == "damper" else [args.data]
         check_fit_records(args.submodel, [*data, *(args.predict or [])])
-        if getattr(args, "out", None) is not None:  # the fit replaces its outputs: never an input of its own
-            o = Path(args.out).resolve()
+        if getattr(args, "out", None) is not None:  # the fit replaces the files it writes in OUT (fit.json,
+            o = Path(args.out).resolve()             # plots, design.yaml, map.csv): never an input of its own
             for opt, f in [*(("--data", f) for f in data), *(("--predict", f) for f in args.predict or []),
                            ("--design", getattr(args, "design", None)), ("--bounds", getattr(args, "bounds", None))]:
-                if f and (o == Path(f).resolve() or o in Path(f).resolve().parents):
+                if f and o in (Path(f).resolve(), Path(f).resolve().parent):
                     raise ArgumentError(f"--out {args.out}: holds the {opt} file {f}; the fit writes its outputs "
                                         f"there, choose another folder (inputs are kept)")
         if getattr(args, "bounds", None):  # readable YAML without duplicate keys, a mapping

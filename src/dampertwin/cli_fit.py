@@ -164,17 +164,14 @@ def load_search_config(path: str | os.PathLike | None, submodel: str | None = No
     return doc
 
 
-def _merge_items(cfg_items: list | None, cli_items: list[dict]) -> list:
-    """Command-line items replace config items of the same parameter (a name within the group, e.g.
-    ``a``, is the same parameter as a key ending in it, e.g. ``piston_intake.a``)."""
-    def ident(it):
-        return str(it.get("key", it.get("name"))) if isinstance(it, dict) else None
+def _merge_items(cfg_items: list | None, cli_items: list[dict], prefix: str = "") -> list:
+    """Command-line items replace config items of the same parameter: keys compared after resolving a
+    name within the fit's group (``prefix``, e.g. ``piston_intake.``: ``a`` is ``piston_intake.a``)."""
+    def key(it):
+        return str(it["key"]) if "key" in it else prefix + str(it.get("name")) if isinstance(it, dict) else None
 
-    def same(a, b):
-        return a == b or ("." not in a and b.endswith("." + a)) or ("." not in b and a.endswith("." + b))
-
-    cli = [ident(i) for i in cli_items]
-    return [i for i in (cfg_items or []) if ident(i) is None or not any(same(ident(i), c) for c in cli)] + cli_items
+    cli = {key(i) for i in cli_items}
+    return [i for i in (cfg_items or []) if not isinstance(i, dict) or key(i) not in cli] + cli_items
 
 
 # ---------------------------------------------------------------- statistics
@@ -231,7 +228,8 @@ def run_fit_cli(args) -> tuple[Path, list[str]]:
                            f"give --population / --generations")
         cfg.setdefault("ga", prof["ga"][section])
         cfg.setdefault("polish", prof.get("polish"))
-    items = _merge_items(cfg.get("parameters"), parse_param_args(args.param)) or None
+    prefix = {"valve": f"{args.valve or cfg.get('valve')}.", "topmount": "top_mount."}.get(args.submodel, "")
+    items = _merge_items(cfg.get("parameters"), parse_param_args(args.param), prefix) or None
     kw = dict(design=args.design, bounds=items, predict=args.predict, out=args.out, seed=args.seed)
     ga = dict(config=cfg, population=args.population, generations=args.generations,
               scheduler=getattr(args, "scheduler", None))

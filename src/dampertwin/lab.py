@@ -211,7 +211,8 @@ def _check_other_sample(out: Path, sample_doc: dict) -> None:
         try:
             meta = read_meta(f)
         except Exception as e:  # not a readable record: never the lab's to overwrite
-            raise LabError(f"--out {out}: holds {f}, which is not a readable record ({e}); write the lab into "
+            why = str(e).splitlines()[-1].strip().lstrip("- ").replace(f"{f}: ", "")  # the reader's line, once
+            raise LabError(f"--out {out}: holds {f}, which is not a readable record ({why}); write the lab into "
                            f"an empty folder or one of this sample's") from None
         h = meta.get("sample_hash") if isinstance(meta, dict) else None
         if not h:
@@ -261,12 +262,22 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
     _check_other_sample(out, sample_doc)
     out.mkdir(parents=True, exist_ok=True)
     marker = out / INCOMPLETE  # removed once every record is written: a killed run leaves it (readers refuse)
-    # the records a stopped earlier run left unwritten stay pending until a run writes them
-    header = (f"a dampertwin lab run of {sample} is writing this folder, or was stopped before it finished: "
-              f"its records may be partial or mixed with an earlier run's; run it again. Records not written yet:")
-    earlier = marker.read_text().splitlines()[1:] if marker.is_file() else []
+    # the records a stopped earlier run of this sample left unwritten stay pending until a run writes them
+    header = [f"a dampertwin lab run of {sample} is writing this folder, or was stopped before it finished: "
+              f"its records may be partial or mixed with an earlier run's; run it again. Records not written yet:",
+              f"sample {sample_doc['_hash']}"]
+    old = marker.read_text().splitlines() if marker.is_file() else []
+    earlier = old[2:] if old[1:2] == header[1:] else []  # another sample's list: none of its records is here
+    for stale in out.glob(f"{INCOMPLETE}.tmp*"):  # a list a killed run was writing
+        stale.unlink()
     pending = dict.fromkeys([*earlier, *(f"{t}/{c}" for t, c in items)])
-    marker.write_text("\n".join([header, *pending]) + "\n")
+
+    def note() -> None:  # atomic: a kill while it is written leaves the previous list
+        tmp = out / f"{INCOMPLETE}.tmp{os.getpid()}"
+        tmp.write_text("\n".join([*header, *pending]) + "\n")
+        os.replace(tmp, marker)
+
+    note()
     # longest first (module random tests), so the workers finish together
     order = sorted(range(len(items)), key=lambda i: items[i][0] not in ("random", "verification", "training"))
     workers = min(len(items), workers or os.cpu_count() or 1)
@@ -278,7 +289,7 @@ def run_lab(sample: str | Path, out: str | Path, tests: list[str] | None = None,
         paths[i] = path
         pending.pop(f"{items[i][0]}/{items[i][1]}", None)
         if pending:
-            marker.write_text("\n".join([header, *pending]) + "\n")
+            note()
         bar.update()
 
     if workers <= 1:

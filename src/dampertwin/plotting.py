@@ -67,20 +67,21 @@ def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: 
     def save(fig, name):
         figures.append((fig, name))
 
+    tmps: dict[Path, Path] = {}
     try:
         _draw(case, design, variant, data, tag, protocols, save)
         out.mkdir(parents=True, exist_ok=True)
-        written = []
-        for fig, name in figures:
-            p = out / f"{name}.png"
-            tmp = out / f".{name}.png.tmp{os.getpid()}"
+        for fig, name in figures:  # every file written before any replaces the old one
+            tmps[out / f"{name}.png"] = tmp = out / f".{name}.png.tmp{os.getpid()}"
             fig.savefig(tmp, dpi=110, format="png")
+        for p, tmp in tmps.items():
             os.replace(tmp, p)
-            written.append(p)
-        return written
+        return list(tmps)
     finally:
         for fig, _ in figures:
             plt.close(fig)
+        for tmp in tmps.values():
+            tmp.unlink(missing_ok=True)
 
 
 def _draw(case: str, design, variant, data: Path | None, tag: str, protocols: dict, save) -> None:

@@ -293,7 +293,7 @@ def fit_topmount_records(design: Design, frames, items, *, cutoff: float, force_
                          where: str = "top-mount search space", scheduler=None):
     """Fit the top-mount parameters on top-mount records (displacement input,
     force output, eq. 6.3). With ``static`` = {run, order[, input_cutoff]}
-    and that run in the fitted record, the static curve is fitted by least
+    (a run of the fitted record, as every run ``want`` names), the static curve is fitted by least
     squares first (kept only if it lowers eq. 6.3, as in the study); the GA
     uses the runs ``want`` (default: all but the static). ``where_k``:
     {frequencies [Hz], amplitude [m]} of the dynamic-stiffness report."""
@@ -319,7 +319,7 @@ def fit_topmount_records(design: Design, frames, items, *, cutoff: float, force_
     fs = 1.0 / (files[0][1][0][0][1] - files[0][1][0][0][0])
     ch = through_sensor("top mount force [N]", nuis["sensor.force_bandwidth"], fs)
     d, fixed, kept = design, {}, "design"
-    if static.get("run") is not None and static["run"] in names:
+    if static.get("run") is not None:
         coef = fit_static_curve(frames[0][1], static["run"], int(static.get("order", 5)), design,
                                 float(static.get("input_cutoff", 20.0)))
         keys = [s.key for s in specs]

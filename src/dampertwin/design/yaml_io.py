@@ -35,7 +35,7 @@ _Loader.yaml_implicit_resolvers = {
 _Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_RE, list("-+0123456789."))
 # YAML 1.2 integers: decimal (017 is 17, not YAML 1.1's octal 15), 0x hex, 0o octal; no YAML 1.1
 # sexagesimal (an unquoted 2:00:00 is the string "2:00:00", not 7200)
-_INT_RE = re.compile(r"^(?:[-+]?[0-9][0-9_]*|0x[0-9a-fA-F_]+|0o[0-7_]+)$")
+_INT_RE = re.compile(r"^(?:[-+]?[0-9][0-9_]*|0x[0-9a-fA-F][0-9a-fA-F_]*|0o[0-7][0-7_]*)$")
 _Loader.add_implicit_resolver("tag:yaml.org,2002:int", _INT_RE, list("-+0123456789"))
 
 
@@ -147,6 +147,11 @@ def yaml_load_file(path: str | os.PathLike, max_bytes: int = MAX_CONFIG_BYTES):
 
 class _Dumper(yaml.SafeDumper):
     pass
+
+
+# a string our loader would read as a number ("09", "0o17", "1e-6") is written quoted, so it loads back a string
+_Dumper.add_implicit_resolver("tag:yaml.org,2002:int", _INT_RE, list("-+0123456789"))
+_Dumper.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_RE, list("-+0123456789."))
 
 
 def _repr_str(dumper: yaml.SafeDumper, s: str):
