@@ -165,3 +165,29 @@ def test_sweeps_guide_trend_counts_are_the_committed_metrics():
     assert meas and sim, "docs/how-to/sweeps.md: the two trend-agreement sentences"
     for found, key in ((meas, "table65_trend_agreement"), (sim, "table65_trend_agreement_thesis_simulated")):
         assert (int(found[1]), int(found[2])) == (m[key]["agree"], m[key]["compared"]), (key, found[0])
+
+
+def test_approach2_guide_bound_hits_are_the_committed_metrics():
+    """docs/explanation/approach2.md names the parameters that end on a search bound in the committed run
+    (results/approach2/metrics.json `bound_hits`), with the side: a rerun that moves them makes it stale."""
+    import json
+
+    hits = json.loads((ROOT / "results" / "approach2" / "metrics.json").read_text())["bound_hits"]
+    text = " ".join((ROOT / "docs" / "explanation" / "approach2.md").read_text().split())
+    m = re.search(r"In the committed run \(the part's own active-valve map\) only (.+?) end on one", text)
+    assert m, "docs/explanation/approach2.md: the committed run's bound-hit sentence"
+    named = set(re.findall(r"([\w.]+) \((upper|lower)\)", m[1]))
+    assert named == {(h["parameter"], h["bound"]) for h in hits}, (m[1], hits)
+
+
+def test_readme_count_of_estimated_baseline_values_is_the_design_files():
+    """The README's count of baseline values that are engineering estimates is that of
+    conf/design/baseline.yaml's `source` lines."""
+    import yaml
+
+    params = yaml.safe_load((ROOT / "conf" / "design" / "baseline.yaml").read_text())["parameters"]
+    n = sum("engineering estimate" in str(p.get("source", "")) for p in params)
+    m = re.search(r"(\d+)\s+of the (\d+) in `conf/design/baseline.yaml` are engineering estimates",
+                  " ".join((ROOT / "README.md").read_text().split()))
+    assert m, "README: the sentence counting the estimated baseline values"
+    assert (int(m[1]), int(m[2])) == (n, len(params))
