@@ -154,13 +154,15 @@ def write_text(path: Path, text: str) -> Path:
 
 
 def write_json(path: Path, obj) -> Path:
-    """JSON, sorted keys; a ``metrics.json`` carries the ``code_hash`` of the
+    """Standard JSON (a non-finite number as null), sorted keys; a ``metrics.json`` carries the ``code_hash`` of the
     source that wrote it (dampertwin.provenance; checked by tests/test_repo.py)."""
     if path.name == "metrics.json" and isinstance(obj, dict):
         from dampertwin.provenance import with_code_hash
 
         obj = with_code_hash(obj)
-    return write_text(path, json.dumps(obj, indent=2, sort_keys=True) + "\n")
+    from dampertwin.io import json_safe
+
+    return write_text(path, json.dumps(json_safe(obj), indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
 def write_overlay(path: Path, overrides: dict, meta: dict) -> Path:

@@ -24,6 +24,7 @@ from dampertwin import kpi, lab
 from dampertwin.calibration.identifiability import sweep_points
 from dampertwin.design import load
 from dampertwin.errors import UserError
+from dampertwin.io import json_safe
 from dampertwin.protocols import build_runs, flow_bench, load_protocol
 from dampertwin.truth import TRUTH_VERSION
 from dampertwin.truth.part import build
@@ -267,7 +268,7 @@ def run(conf: Path, results: Path, out: Path, sample_path: Path | None = None) -
     doc = {"note": SYNTHETIC, "synthetic": True, "truth": TRUTH_VERSION, "sample_hash": sample.get("_hash", ""),
            "gas_and_oil": gas, "gas_parameters": raw, "valves": curves, "topmount": {"amplitude [m]": amp, "rows": tm},
            "inputs": {k: str(v.relative_to(results.parent)) for k, v in paths.items()}}
-    write_text(out / "recovery.json", json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    write_text(out / "recovery.json", json.dumps(json_safe(doc), indent=1, sort_keys=True, allow_nan=False) + "\n")
     figures(curves, tm, out)
     write_json(out / "metrics.json", m)
     return m

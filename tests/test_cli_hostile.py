@@ -270,6 +270,50 @@ def test_a_non_numeric_cell_is_named_with_its_row(tmp_path, capsys):
     assert "1 non-numeric values (the first, data row 7: an empty cell" in _err(capsys)
 
 
+@pytest.mark.parametrize("cell, hint", [("12,5", "a decimal comma needs csv: {decimal: ','}"),
+                                        ("-1.234,5e-3", "a decimal comma"),
+                                        ("end of record", "a text line in the data"),
+                                        ("F", "a text line in the data")])
+def test_a_non_numeric_cell_gets_the_hint_of_its_kind(tmp_path, capsys, cell, hint):
+    """A footer or a repeated header row is not blamed on a decimal comma; a comma number is."""
+    src = tmp_path / "s.csv"
+    df = device().drop(columns="velocity [m/s]").rename(columns={"time [s]": "t", "displacement [m]": "x",
+                                                                 "force [N]": "F"})
+    df["F"] = df["F"].astype(object)
+    df.loc[len(df) - 1, "F"] = cell
+    df.to_csv(src, index=False)
+    m = tmp_path / "m.yaml"
+    m.write_text("columns:\n  t: {quantity: time, unit: s}\n  x: {quantity: displacement, unit: m}\n"
+                 "  F: {quantity: force, unit: N}\n")
+    assert main(["import", str(src), "--map", str(m), "--out", str(tmp_path / "o.parquet")]) == 2
+    err = _err(capsys)
+    assert hint in err and repr(cell) in err
+    assert ("decimal comma" in err) == ("," in cell)
+
+
+def test_a_header_naming_a_column_twice_is_refused(tmp_path, capsys):
+    """pandas renames a repeated header name 'F.1' and the mapping would take the first column silently."""
+    src = tmp_path / "s.csv"
+    df = device().drop(columns="velocity [m/s]")
+    lines = df.to_csv(index=False, sep=";").splitlines()
+    lines[0] = "t;x;F;F"
+    src.write_text("meta line\n" + "\n".join(f"{ln};0" if i else ln for i, ln in enumerate(lines)) + "\n")
+    m = tmp_path / "m.yaml"
+    m.write_text("csv: {sep: ';', skiprows: 1}\ncolumns:\n  t: {quantity: time, unit: s}\n"
+                 "  x: {quantity: displacement, unit: m}\n  F: {quantity: force, unit: N}\n")
+    out = tmp_path / "o.parquet"
+    assert main(["import", str(src), "--map", str(m), "--out", str(out)]) == 2
+    assert "names column 'F' twice (columns 3 and 4)" in _err(capsys) and not out.exists()
+    src.write_text("meta line\n" + "\n".join(f"{ln};0" if i else ln.replace("F;F", "F;G")
+                                              for i, ln in enumerate(lines)) + "\n")
+    assert main(["import", str(src), "--map", str(m), "--out", str(out)]) == 0 and out.is_file()
+    rec = tmp_path / "r.csv"
+    df.to_csv(rec, index=False)
+    rec.write_text(rec.read_text().replace("force [N]", "displacement [m]", 1))
+    assert main(["kpi", "dyno", str(rec)]) == 2
+    assert "names column 'displacement [m]' twice" in _err(capsys)
+
+
 @pytest.mark.parametrize("value, needle", [(-9.0e8, "expected the same sign"), (9.0e5, "x the nominal part's")])
 def test_a_truth_sample_value_of_another_sign_or_unit_is_refused(tmp_path, value, needle):
     """oil.K0 negative or 1000x too soft (Pa written as kPa): refused when the sample is checked, naming the key,

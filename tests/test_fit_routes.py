@@ -59,6 +59,6 @@ def test_fit_valve_and_the_flowbench_stage_give_the_same_fit(lab_record, tmp_pat
     assert doc["polish"]["objective_polished"] == res.polish["objective_polished"]
     assert doc["bounds"] == {s.key: [s.lo, s.hi, s.scale] for s in res.specs}
     assert doc["bound_hits"] == res.bound_hits
-    from dampertwin.cli_fit_files import _plain_json
-    assert doc["uncertainty"] == _plain_json(summary(res.uncertainty))
+    from dampertwin.io import json_safe
+    assert doc["uncertainty"] == json_safe(summary(res.uncertainty))
     assert doc["uncertainty"]["parameters"]["piston_intake.a"]["ci95"] == [None, None]  # unbounded here

@@ -45,6 +45,24 @@ def test_wrong_dimension_and_missing_column_are_named():
         convert(df, {"columns": {"X": {"quantity": "time", "unit": "s"}}})
 
 
+@pytest.mark.parametrize("runs", [False, True])
+def test_time_offset_keeps_integer_epoch_stamps_exact(runs):
+    """Absolute microsecond stamps at 50 kHz (1.7e15 us): shifted to zero in the file's integers, then scaled;
+    scaling first leaves ~0.2 us of float64 rounding (1 % of an interval)."""
+    k = np.arange(4000)
+    df = pd.DataFrame({"t": 1732870000123456 + 20 * k, "x": np.sin(k / 100.0)})
+    m = {"columns": {"t": {"quantity": "time", "unit": "us"}, "x": {"quantity": "displacement", "unit": "m"}},
+         "time_offset": True}
+    if runs:
+        df["r"] = np.where(k < 2000, "I1.6", "I0.9")
+        m["columns"]["r"] = {"quantity": "run"}
+    t = convert(df, m)["time [s]"].to_numpy()
+    want = (k - np.where(k < 2000, 0, 2000)) * 2e-5 if runs else k * 2e-5
+    assert np.abs(t - want).max() < 1e-12
+    m["time_offset"] = False
+    assert convert(df, m)["time [s]"].iloc[0] == pytest.approx(1732870000.123456)
+
+
 def test_import_writes_schema_with_provenance(tmp_path):
     n = 10_000
     t_ms = np.arange(n) * 0.02  # 50 kHz (the monosine protocol's rate) in ms

@@ -160,6 +160,50 @@ def test_metrics_writer_records_the_code_hash(tmp_path):
     assert "code_hash" not in json.loads((tmp_path / "other.json").read_text())
 
 
+def test_stage_json_is_standard_json(tmp_path):
+    """An unbounded interval or undefined ratio is written as null, never Infinity / NaN (RFC 8259), and read
+    back as the unbounded interval it was."""
+    import json
+
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "stages"))
+    try:
+        from _common import write_json
+    finally:
+        sys.path.remove(str(ROOT / "stages"))
+    from dampertwin.calibration.uncertainty import summary
+
+    write_json(tmp_path / "u.json", {"parameters": [{"parameter": "a", "value": np.float64(2.0),
+                                                     "ci95 low": -np.inf, "ci95 high": np.inf,
+                                                     "rel. half-width [%]": np.inf, "determined": np.bool_(False),
+                                                     "why": "x"}], "n_samples": np.int64(3), "n_eff": np.nan,
+                                     "undetermined": ["a"], "correlation": [[1.0]]})
+    text = (tmp_path / "u.json").read_text()
+    doc = json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in stage JSON"))
+    assert doc["n_eff"] is None and doc["parameters"][0]["ci95 high"] is None and doc["n_samples"] == 3
+    p = summary(doc)["parameters"]["a"]
+    assert p["ci95"] == [-np.inf, np.inf] and p["rel_halfwidth"] == np.inf and p["value"] == 2.0
+    from dampertwin.study_report import fit_rows
+    write_json(tmp_path / "fits.json", {"fits": {"f": {"values": {"a": 2.0}, "uncertainty": summary(doc)}}})
+    row = fit_rows(json.loads((tmp_path / "fits.json").read_text()))[0].iloc[0]  # the report reads it back
+    assert row["95 % interval"] == [-np.inf, np.inf] and row["rel. half-width [%]"] == np.inf
+
+
+def test_committed_json_is_standard_json():
+    """Every committed JSON file parses without Infinity / NaN tokens (jq, browsers and JSON schema refuse them)."""
+    import json
+
+    bad = []
+    for rel in _tracked_files():
+        if rel.endswith(".json"):
+            try:
+                json.loads((ROOT / rel).read_text(), parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+            except ValueError as e:
+                bad.append(f"{rel}: {e}")
+    assert not bad, bad
+
+
 def test_code_hash_follows_the_source(tmp_path):
     import shutil
 

@@ -27,30 +27,17 @@ from .calibration.ga import FitError
 from .calibration.polish import PolishSettings
 from .design import Design, load as load_design, yaml_load
 from .fit_plots import friction_plots, series_plots
+from .io import json_safe
 
 
 def _sha(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _plain_json(o):
-    """``o`` as standard JSON values: numpy scalars / arrays as numbers / lists, a non-finite number
-    (an unbounded interval end, an undefined ratio) as null (RFC 8259 has no Infinity or NaN)."""
-    if isinstance(o, dict):
-        return {k: _plain_json(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple, np.ndarray)):
-        return [_plain_json(v) for v in (o.tolist() if isinstance(o, np.ndarray) else o)]
-    if isinstance(o, (float, np.floating)):
-        return float(o) if np.isfinite(o) else None
-    if isinstance(o, np.bool_):
-        return bool(o)
-    return int(o) if isinstance(o, np.integer) else o
-
-
 def _write_json(path: Path, obj) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(_plain_json(obj), indent=2, sort_keys=False, default=float, allow_nan=False) + "\n")
+    tmp.write_text(json.dumps(json_safe(obj), indent=2, sort_keys=False, default=float, allow_nan=False) + "\n")
     os.replace(tmp, path)
     return path
 

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +81,9 @@ UNIT_TABLE: dict[str, tuple[str, float, float]] = {
 ALIASES = {"µm": "um", "μm": "um", "µs": "us", "m/s²": "m/s^2", "°C": "degC", "C": "degC", "°F": "degF",
            "L/min": "l/min", "lb": "lbf", "kips": "kip", "ips": "in/s", "lpm": "l/min", "L/s": "l/s", "ccm/s": "cm^3/s", "G": "g"}
 P_ATM = 101325.0  # [Pa] added to gauge pressures
+# a number written with a decimal comma (1,5 / -0,25 / 1.234,5 / 1,5e-3): the hint of a non-numeric cell
+_DECIMAL_COMMA = re.compile(r"^[+-]?(\d{1,3}(\.\d{3})+|\d+)?,\d+([eE][+-]?\d+)?$")
+
 # date-time formats tried in turn (after a decimal comma becomes a point) when the mapping gives no format:
 DATETIME_FORMATS = ("ISO8601", "%d.%m.%Y %H:%M:%S.%f", "%d.%m.%Y %H:%M:%S", "%H:%M:%S.%f", "%H:%M:%S")
 STAMP_JITTER = 0.1  # [sampling intervals] clock jitter of date-time stamps tolerated on top of half their resolution
@@ -197,10 +201,16 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
         if raw.isna().any():
             i = int(np.argmax(raw.isna().to_numpy()))
             bad = df[name].iloc[i]
-            bad = "an empty cell" if pd.isna(bad) or str(bad).strip() == "" else repr(str(bad))
+            empty = pd.isna(bad) or str(bad).strip() == ""
+            hint = ("a decimal comma needs csv: {decimal: ','}" if not empty and _DECIMAL_COMMA.match(str(bad).strip())
+                    else "a text line in the data (a footer, a second header) needs csv: {skipfooter: N, "
+                         "engine: python} or {comment: '#'}; a missing value cannot be imported")
             raise MappingError(f"{label}: {int(raw.isna().sum())} non-numeric values (the first, data row {i + 1}: "
-                               f"{bad}; a decimal comma needs csv: {{decimal: ','}})")
-        x, si = to_si(raw.to_numpy(), spec["unit"], where=label, gauge=bool(spec.get("gauge", False)))
+                               f"{'an empty cell' if empty else repr(str(bad))}; {hint})")
+        vals = raw.to_numpy()
+        if q == "time" and mapping.get("time_offset") is True:  # in the file's own units and dtype first: exact
+            vals = vals - vals[0]  # for integer epoch stamps (1.7e15 us; float64 seconds resolve only ~0.2 us)
+        x, si = to_si(vals, spec["unit"], where=label, gauge=bool(spec.get("gauge", False)))
         if q in io.UNITS and io.UNITS[q] != si:
             raise MappingError(f"{label}: unit {spec['unit']!r} is a {si} unit but {q!r} needs {io.UNITS[q]!r}")
         col = f"{q} [{si}]"

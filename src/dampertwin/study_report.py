@@ -99,8 +99,10 @@ def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[dict]]:
         for key, value in f.get("values", {}).items():
             u = unc.get(key)
             rows.append({"fit": name, "parameter": key, "value": value,
-                         "95 % interval": None if u is None else u["ci95"],
-                         "rel. half-width [%]": None if u is None else 100 * u["rel_halfwidth"],
+                         "95 % interval": None if u is None else [-math.inf if u["ci95"][0] is None else u["ci95"][0],
+                                                                  math.inf if u["ci95"][1] is None else u["ci95"][1]],
+                         "rel. half-width [%]": None if u is None else (math.inf if u["rel_halfwidth"] is None
+                                                                        else 100 * u["rel_halfwidth"]),
                          "determined": "-" if u is None else ("yes" if u["determined"] else f"**no** ({u['why']})")})
     return pd.DataFrame(rows), flags
 

@@ -346,13 +346,19 @@ METHOD = ("linearised least squares at the optimum: covariance s^2 (J^T J)^+ n /
           "other optima of the multi-start polish inside the joint 95 % region (calibration.uncertainty)")
 
 
+def _bound(x, sign: int) -> float:
+    """An interval end or width read back from standard JSON (null = unbounded) as +-inf."""
+    return sign * np.inf if x is None else x
+
+
 def summary(u: dict) -> dict:
     """The form every fit report uses (study ``fits.json``, ``dampertwin fit``
     ``fit.json``) of an :meth:`Uncertainty.to_dict`: per parameter its value,
     95 % interval, relative half-width, ``determined`` and why not; the
     undetermined list, the sample sizes and the correlations."""
-    params = {r["parameter"]: {"value": r["value"], "ci95": [r["ci95 low"], r["ci95 high"]],
-                               "rel_halfwidth": r["rel. half-width [%]"] / 100.0, "determined": bool(r["determined"]),
+    params = {r["parameter"]: {"value": r["value"], "ci95": [_bound(r["ci95 low"], -1), _bound(r["ci95 high"], 1)],
+                               "rel_halfwidth": _bound(r["rel. half-width [%]"], 1) / 100.0,
+                               "determined": bool(r["determined"]),
                                "why": r["why"]} for r in u["parameters"]}
     return {"method": METHOD, "n_samples": u["n_samples"], "n_eff": u["n_eff"], "parameters": params,
             "undetermined": list(u["undetermined"]), "correlation": u["correlation"],

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..design import ConfigTextError, DesignError, load, yaml_load_file
 from ..errors import UserError
-from ..io import check_out_dir, read_record, runs
+from ..io import check_out_dir, json_safe, read_record, runs
 from ..protocols import flow_bench, load_protocol
 from ..variants import load_variant
 from . import features as F
@@ -303,9 +303,10 @@ def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
     old = None
     try:
         _dump_design(res["design"], tmp)
-        (tmp / "verdict.json").write_text(json.dumps(doc, indent=2) + "\n")
+        (tmp / "verdict.json").write_text(json.dumps(json_safe(doc), indent=2, allow_nan=False) + "\n")
         if res.get("resolvability"):  # `none` verdicts: what these records could have seen
-            (tmp / "resolvability.json").write_text(json.dumps(res["resolvability"], indent=2) + "\n")
+            (tmp / "resolvability.json").write_text(json.dumps(json_safe(res["resolvability"]), indent=2,
+                                                                       allow_nan=False) + "\n")
         write_report(tmp, d, problem, res, doc, {"design": design, "measured": measured, "profile": profile,
                                                  "seed": int(seed)})
         old = None

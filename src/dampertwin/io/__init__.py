@@ -109,6 +109,21 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+def json_safe(o):
+    """``o`` as standard JSON values (RFC 8259 has no Infinity or NaN): numpy scalars / arrays as numbers /
+    lists, a non-finite number (an unbounded interval end, an undefined ratio) as null. Every JSON file the
+    stages and the CLI write goes through it, with ``allow_nan=False``."""
+    if isinstance(o, dict):
+        return {k: json_safe(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple, np.ndarray)):
+        return [json_safe(v) for v in (o.tolist() if isinstance(o, np.ndarray) else o)]
+    if isinstance(o, (float, np.floating)):
+        return float(o) if np.isfinite(o) else None
+    if isinstance(o, np.bool_):
+        return bool(o)
+    return int(o) if isinstance(o, np.integer) else o
+
+
 def read_meta(path: str | os.PathLike) -> dict:
     """A record's dampertwin metadata (a JSON object in the Parquet schema; {} when it has none);
     metadata that is no JSON object is a DataError naming the file."""
@@ -206,7 +221,32 @@ def read_table(path: str | os.PathLike, csv_kw: dict | None = None) -> tuple[pd.
         raise DataError([f"{where}: cannot read: {' '.join(str(e).split())[:300]}"]) from None
     if len(df) == 0:
         raise DataError([f"{where}: empty record: no rows (a header of {len(df.columns)} columns only); expected a record"])
+    if path.suffix != ".parquet":
+        _check_csv_header(path, csv_kw or {})
     return df, meta
+
+
+def _check_csv_header(path: Path, csv_kw: dict) -> None:
+    """A CSV header naming a column twice is a DataError (pandas would rename the second 'x.1' and a reader
+    take the first). The header line is read again as data, with the same keywords."""
+    header = csv_kw.get("header", "infer")
+    if "names" in csv_kw or header is None:
+        return  # the caller names the columns (pandas refuses repeated names itself) or there is no header
+    h = 0 if header == "infer" else header
+    if not isinstance(h, int) or isinstance(h, bool):
+        return  # a multi-row header: pandas' own handling
+    kw = {k: v for k, v in csv_kw.items() if k not in ("header", "nrows", "skipfooter", "usecols", "index_col")}
+    try:
+        row = pd.read_csv(path, header=None, nrows=h + 1, dtype=str, keep_default_na=False, **kw).iloc[h]
+    except Exception:  # noqa: BLE001 - the table itself was read; a header we cannot re-read is not checked
+        return
+    names = [str(v).strip() for v in row.tolist()]
+    seen: dict[str, int] = {}
+    for i, n in enumerate(names):
+        if n in seen and n:  # empty names (trailing separators) become pandas' distinct 'Unnamed: i'
+            raise DataError([f"{path}: the header names column {n!r} twice (columns {seen[n] + 1} and {i + 1}); "
+                             f"expected each column name once"])
+        seen[n] = i
 
 
 def check_frame(df: pd.DataFrame, meta: dict, where: str, protocol: str | None = None, *,
