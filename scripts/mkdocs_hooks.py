@@ -132,10 +132,15 @@ def config_groups() -> str:
 
 
 # ------------------------------------------------------------------ validation from committed results
+def _g(x, spec: str) -> str:
+    """A number from standard JSON (null: a non-finite value there) in ``spec`` format."""
+    return "-" if x is None else format(x, spec)
+
+
 def _metrics_table(metrics: dict) -> list[str]:
     rows = [(k, v) for k, v in sorted(metrics.items()) if isinstance(v, dict) and "mean_abs" in v]
     out = ["| metric | mean abs | max abs |", "|---|---|---|"]
-    out += [f"| {k} | {v['mean_abs']:.3g} | {v['max_abs']:.3g} |" for k, v in rows]
+    out += [f"| {k} | {_g(v['mean_abs'], '.3g')} | {_g(v['max_abs'], '.3g')} |" for k, v in rows]
     return out
 
 
@@ -157,7 +162,8 @@ def validation_approach1() -> str:
     out += ["", "### Fits (from `fits.json`)", "", "| fit | objective before | after | evaluations |",
             "|---|---|---|---|"]
     for n, f in fits["fits"].items():
-        out.append(f"| {n} | {f['objective_start']:.4g} | {f['objective_best']:.4g} | {f['evaluations']} |")
+        out.append(f"| {n} | {_g(f['objective_start'], '.4g')} | {_g(f['objective_best'], '.4g')} | "
+                   f"{f['evaluations']} |")
     for t in ("table_6_5.md", "table_6_6.md"):
         out += ["", f"### `{t}`", "", (a1 / t).read_text().strip()]
     return "\n".join(out)

@@ -273,7 +273,9 @@ def test_a_non_numeric_cell_is_named_with_its_row(tmp_path, capsys):
 @pytest.mark.parametrize("cell, hint", [("12,5", "a decimal comma needs csv: {decimal: ','}"),
                                         ("-1.234,5e-3", "a decimal comma"),
                                         ("end of record", "a text line in the data"),
-                                        ("F", "a text line in the data")])
+                                        ("F", "a text line in the data"),
+                                        ("1 234,5", "a thousands separator"), ("1,234.5", "a thousands separator"),
+                                        ("1\u00a0234", "a thousands separator")])
 def test_a_non_numeric_cell_gets_the_hint_of_its_kind(tmp_path, capsys, cell, hint):
     """A footer or a repeated header row is not blamed on a decimal comma; a comma number is."""
     src = tmp_path / "s.csv"
@@ -288,7 +290,27 @@ def test_a_non_numeric_cell_gets_the_hint_of_its_kind(tmp_path, capsys, cell, hi
     assert main(["import", str(src), "--map", str(m), "--out", str(tmp_path / "o.parquet")]) == 2
     err = _err(capsys)
     assert hint in err and repr(cell) in err
-    assert ("decimal comma" in err) == ("," in cell)
+    assert ("decimal comma" in err) == ("," in cell and "thousands" not in hint)
+
+
+@pytest.mark.parametrize("header, kw, refused", [
+    ("Logger v2\nt,x,F,F,G", {"header": 1}, "'F'"),             # a preamble the header re-read cannot parse
+    ("t,x,F,F,G", {"dtype": {"t": float}}, "'F'"),              # keywords the re-read cannot take
+    ("t,x,F,Status,Status", {"usecols": [0, 1, 2]}, None),     # the repeat is not read
+    ("t,x,F,Status,Status", {"usecols": ["t", "x", "F"]}, None),
+    ("t, x,x,F,G", {}, None),                                   # ' x' and 'x' are two names to pandas
+    ("t,x,x.1,F,G", {}, None),                                  # the file really names a column 'x.1'
+    ("t,x,x.1,x,G", {}, "'x'"),
+])
+def test_repeated_header_names_under_csv_keywords(tmp_path, header, kw, refused):
+    from dampertwin.io import DataError, read_table
+    p = tmp_path / "h.csv"
+    p.write_text(header + "\n0,1,2,3,4\n1,2,3,4,5\n")
+    if refused is None:
+        assert len(read_table(p, kw)[0]) == 2
+    else:
+        with pytest.raises(DataError, match=f"names column {refused} more than once"):
+            read_table(p, kw)
 
 
 def test_a_header_naming_a_column_twice_is_refused(tmp_path, capsys):
@@ -303,7 +325,7 @@ def test_a_header_naming_a_column_twice_is_refused(tmp_path, capsys):
                  "  x: {quantity: displacement, unit: m}\n  F: {quantity: force, unit: N}\n")
     out = tmp_path / "o.parquet"
     assert main(["import", str(src), "--map", str(m), "--out", str(out)]) == 2
-    assert "names column 'F' twice (columns 3 and 4)" in _err(capsys) and not out.exists()
+    assert "names column 'F' more than once (pandas called a repeat 'F.1')" in _err(capsys) and not out.exists()
     src.write_text("meta line\n" + "\n".join(f"{ln};0" if i else ln.replace("F;F", "F;G")
                                               for i, ln in enumerate(lines)) + "\n")
     assert main(["import", str(src), "--map", str(m), "--out", str(out)]) == 0 and out.is_file()
@@ -311,7 +333,7 @@ def test_a_header_naming_a_column_twice_is_refused(tmp_path, capsys):
     df.to_csv(rec, index=False)
     rec.write_text(rec.read_text().replace("force [N]", "displacement [m]", 1))
     assert main(["kpi", "dyno", str(rec)]) == 2
-    assert "names column 'displacement [m]' twice" in _err(capsys)
+    assert "names column 'displacement [m]' more than once" in _err(capsys)
 
 
 @pytest.mark.parametrize("value, needle", [(-9.0e8, "expected the same sign"), (9.0e5, "x the nominal part's")])

@@ -188,6 +188,20 @@ def test_stage_json_is_standard_json(tmp_path):
     write_json(tmp_path / "fits.json", {"fits": {"f": {"values": {"a": 2.0}, "uncertainty": summary(doc)}}})
     row = fit_rows(json.loads((tmp_path / "fits.json").read_text()))[0].iloc[0]  # the report reads it back
     assert row["95 % interval"] == [-np.inf, np.inf] and row["rel. half-width [%]"] == np.inf
+    from dampertwin.study_report import determined_tables
+    det = {"quantity": "q", "rows": [{"frequency [Hz]": 10.0, "stiffness [N/m]": 2e5, "loss angle [deg]": 3.0,
+                                      "stiffness ci95 [N/m]": [-np.inf, np.inf], "loss angle ci95 [deg]": [1.0, np.inf]}]}
+    write_json(tmp_path / "fits.json", {"fits": {"f": {"values": {}, "objective_start": np.nan, "objective_best": 2.0,
+                                                       "determined": det}}})
+    fits = json.loads((tmp_path / "fits.json").read_text())
+    assert not fit_rows(fits)[1]  # an undefined start flags nothing (nan compares false), as before null
+    assert "| 10 | 200 | [-inf, inf] | 3 | [1, inf] |" in "\n".join(determined_tables(fits))
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        from mkdocs_hooks import _metrics_table
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+    assert _metrics_table({"m": {"mean_abs": None, "max_abs": 1.0}})[-1] == "| m | - | 1 |"
 
 
 def test_committed_json_is_standard_json():

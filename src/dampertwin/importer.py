@@ -83,6 +83,8 @@ ALIASES = {"µm": "um", "μm": "um", "µs": "us", "m/s²": "m/s^2", "°C": "degC
 P_ATM = 101325.0  # [Pa] added to gauge pressures
 # a number written with a decimal comma (1,5 / -0,25 / 1.234,5 / 1,5e-3): the hint of a non-numeric cell
 _DECIMAL_COMMA = re.compile(r"^[+-]?(\d{1,3}(\.\d{3})+|\d+)?,\d+([eE][+-]?\d+)?$")
+# a number with a thousands separator (1 234,5 / 1,234.5 / 1 234 with a (no-break) space): its own hint
+_THOUSANDS = re.compile(r"^[+-]?\d{1,3}([ \u00a0\u202f]\d{3})+([.,]\d+)?$|^[+-]?\d{1,3}(,\d{3})+\.\d+$")
 
 # date-time formats tried in turn (after a decimal comma becomes a point) when the mapping gives no format:
 DATETIME_FORMATS = ("ISO8601", "%d.%m.%Y %H:%M:%S.%f", "%d.%m.%Y %H:%M:%S", "%H:%M:%S.%f", "%H:%M:%S")
@@ -202,7 +204,9 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
             i = int(np.argmax(raw.isna().to_numpy()))
             bad = df[name].iloc[i]
             empty = pd.isna(bad) or str(bad).strip() == ""
-            hint = ("a decimal comma needs csv: {decimal: ','}" if not empty and _DECIMAL_COMMA.match(str(bad).strip())
+            cell = "" if empty else str(bad).strip()
+            hint = ("a thousands separator needs csv: {thousands: ...} (and decimal:)" if _THOUSANDS.match(cell)
+                    else "a decimal comma needs csv: {decimal: ','}" if _DECIMAL_COMMA.match(cell)
                     else "a text line in the data (a footer, a second header) needs csv: {skipfooter: N, "
                          "engine: python} or {comment: '#'}; a missing value cannot be imported")
             raise MappingError(f"{label}: {int(raw.isna().sum())} non-numeric values (the first, data row {i + 1}: "

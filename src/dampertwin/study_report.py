@@ -69,6 +69,16 @@ def _flag_rows(t: pd.DataFrame, cols: list[str], limit: float, unit: str) -> tup
     return t, flags
 
 
+def _x(v, null: float = math.nan) -> float:
+    """A number read from the study's standard JSON: null (written for a non-finite value) as ``null``."""
+    return null if v is None else v
+
+
+def _band(b) -> list[float]:
+    """A 95 % interval [low, high] read from standard JSON: a null end is unbounded."""
+    return [_x(b[0], -math.inf), _x(b[1], math.inf)]
+
+
 def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[dict]]:
     """One row per fitted parameter: value, 95 % interval, relative
     half-width, determined (calibration.uncertainty, via fits.json); and
@@ -80,7 +90,7 @@ def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[dict]]:
         if f.get("failed_simulations"):
             flags.append({"where": name, "flag": "failed simulations",
                           "detail": f"{f['failed_simulations']} during the GA"})
-        if f.get("objective_best", 0) >= f.get("objective_start", math.inf):
+        if _x(f.get("objective_best", 0)) >= _x(f.get("objective_start", math.inf)):  # nan: no flag
             flags.append({"where": name, "flag": "objective not lowered", "detail": ""})
         hits = f.get("bound_hits") or []
         if hits:
@@ -99,10 +109,8 @@ def fit_rows(fits: dict) -> tuple[pd.DataFrame, list[dict]]:
         for key, value in f.get("values", {}).items():
             u = unc.get(key)
             rows.append({"fit": name, "parameter": key, "value": value,
-                         "95 % interval": None if u is None else [-math.inf if u["ci95"][0] is None else u["ci95"][0],
-                                                                  math.inf if u["ci95"][1] is None else u["ci95"][1]],
-                         "rel. half-width [%]": None if u is None else (math.inf if u["rel_halfwidth"] is None
-                                                                        else 100 * u["rel_halfwidth"]),
+                         "95 % interval": None if u is None else _band(u["ci95"]),
+                         "rel. half-width [%]": None if u is None else 100 * _x(u["rel_halfwidth"], math.inf),
                          "determined": "-" if u is None else ("yes" if u["determined"] else f"**no** ({u['why']})")})
     return pd.DataFrame(rows), flags
 
@@ -150,12 +158,12 @@ def determined_tables(fits: dict) -> list[str]:
             continue
         if "curve" in det:
             rows = [{"lift [mm]": 1e3 * r["lift [m]"], "force [N]": r["force [N]"],
-                     "95 % band [N]": [r["ci95 low [N]"], r["ci95 high [N]"]],
-                     "rel. half-width [%]": r["rel. half-width [%]"]} for r in det["curve"]]
+                     "95 % band [N]": _band([r["ci95 low [N]"], r["ci95 high [N]"]]),
+                     "rel. half-width [%]": _x(r["rel. half-width [%]"], math.inf)} for r in det["curve"]]
         else:
             rows = [{"frequency [Hz]": r["frequency [Hz]"], "|K*| [N/mm]": r["stiffness [N/m]"] / 1e3,
-                     "95 % band [N/mm]": [x / 1e3 for x in r["stiffness ci95 [N/m]"]],
-                     "loss angle [deg]": r["loss angle [deg]"], "95 % band [deg]": r["loss angle ci95 [deg]"]}
+                     "95 % band [N/mm]": [x / 1e3 for x in _band(r["stiffness ci95 [N/m]"])],
+                     "loss angle [deg]": r["loss angle [deg]"], "95 % band [deg]": _band(r["loss angle ci95 [deg]"])}
                     for r in det["rows"]]
         md += [f"### {name}: {det['quantity']}", "", _md_table(pd.DataFrame(rows)), ""]
     return md
@@ -192,14 +200,15 @@ def build_report(study: str | Path, *, measured_label: str = "", cases: list[str
            f"determined when its interval half-width exceeds {REL_CI_MAX:.0%} of its value, it correlates with "
            f"another beyond |{CORR_MAX}|, or it loads a singular direction of the Jacobian.", ""]
     md += ["## Summary metrics", "", _md_table(pd.DataFrame(
-        [{"metric": k, "mean abs diff": v["mean_abs"], "max abs diff": v["max_abs"]} for k, v in metrics.items()
+        [{"metric": k, "mean abs diff": _x(v["mean_abs"]), "max abs diff": _x(v["max_abs"])} for k, v in metrics.items()
          if isinstance(v, dict) and "mean_abs" in v])), ""]
     md += ["## Table 6.5 - mono-sine rod acceleration peaks [g]", "", _md_table(t65f), ""]
     md += ["## Table 6.6 - random-test rod acceleration PSD [dB re 1 g^2/Hz]", "", _md_table(t66f), ""]
     md += ["## Fitted parameters", ""]
-    obj = pd.DataFrame([{"fit": n, "objective before": f["objective_start"], "objective after": f["objective_best"],
-                         "improvement [%]": 100 * (1 - f["objective_best"] / f["objective_start"])
-                         if f["objective_start"] else None, "evaluations": f["evaluations"],
+    obj = pd.DataFrame([{"fit": n, "objective before": _x(f["objective_start"]),
+                         "objective after": _x(f["objective_best"]),
+                         "improvement [%]": 100 * (1 - _x(f["objective_best"]) / _x(f["objective_start"]))
+                         if _x(f["objective_start"]) else None, "evaluations": f["evaluations"],
                          "failed": f["failed_simulations"]} for n, f in fits.get("fits", {}).items()])
     if len(obj):
         md += [_md_table(obj), ""]

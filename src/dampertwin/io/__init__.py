@@ -222,31 +222,37 @@ def read_table(path: str | os.PathLike, csv_kw: dict | None = None) -> tuple[pd.
     if len(df) == 0:
         raise DataError([f"{where}: empty record: no rows (a header of {len(df.columns)} columns only); expected a record"])
     if path.suffix != ".parquet":
-        _check_csv_header(path, csv_kw or {})
+        _check_csv_header(path, df, csv_kw or {})
     return df, meta
 
 
-def _check_csv_header(path: Path, csv_kw: dict) -> None:
-    """A CSV header naming a column twice is a DataError (pandas would rename the second 'x.1' and a reader
-    take the first). The header line is read again as data, with the same keywords."""
-    header = csv_kw.get("header", "infer")
-    if "names" in csv_kw or header is None:
-        return  # the caller names the columns (pandas refuses repeated names itself) or there is no header
-    h = 0 if header == "infer" else header
-    if not isinstance(h, int) or isinstance(h, bool):
-        return  # a multi-row header: pandas' own handling
-    kw = {k: v for k, v in csv_kw.items() if k not in ("header", "nrows", "skipfooter", "usecols", "index_col")}
-    try:
-        row = pd.read_csv(path, header=None, nrows=h + 1, dtype=str, keep_default_na=False, **kw).iloc[h]
-    except Exception:  # noqa: BLE001 - the table itself was read; a header we cannot re-read is not checked
+_MANGLED = re.compile(r"^(?P<base>.*)\.(?P<k>[1-9][0-9]*)$")  # pandas' name for a repeated header name: 'x.1'
+
+
+def _check_csv_header(path: Path, df: pd.DataFrame, csv_kw: dict) -> None:
+    """A CSV header naming a column twice is a DataError: pandas names the second 'x.1' and a reader would take
+    the first. Suspects are read from pandas' own parse (so ``header``, ``usecols`` and the like apply); a
+    suspect is cleared only when the header line itself, read again as data, holds the name 'x.1'."""
+    names = [str(c) for c in df.columns]
+    suspects = [(c, m.group("base")) for c in names if (m := _MANGLED.match(c)) and m.group("base") in names]
+    if not suspects:
         return
-    names = [str(v).strip() for v in row.tolist()]
-    seen: dict[str, int] = {}
-    for i, n in enumerate(names):
-        if n in seen and n:  # empty names (trailing separators) become pandas' distinct 'Unnamed: i'
-            raise DataError([f"{path}: the header names column {n!r} twice (columns {seen[n] + 1} and {i + 1}); "
-                             f"expected each column name once"])
-        seen[n] = i
+    raw = None
+    header = csv_kw.get("header", "infer")
+    h = 0 if header == "infer" else header
+    if isinstance(h, int) and not isinstance(h, bool) and "names" not in csv_kw:
+        kw = {k: v for k, v in csv_kw.items() if k not in ("header", "nrows", "skipfooter", "usecols", "index_col",
+                                                             "dtype", "keep_default_na", "na_values", "parse_dates",
+                                                             "converters", "names")}
+        try:
+            raw = pd.read_csv(path, header=None, nrows=h + 1, dtype=str, keep_default_na=False, **kw).iloc[h].tolist()
+        except Exception:  # noqa: BLE001 - a preamble the re-read cannot parse: pandas' renaming stands
+            raw = None
+    for c, base in suspects:
+        if raw is not None and raw.count(c) >= 1 and raw.count(base) == 1:
+            continue  # the file really names a column 'x.1'
+        raise DataError([f"{path}: the header names column {base!r} more than once (pandas called a repeat {c!r}); "
+                         f"expected each column name once"])
 
 
 def check_frame(df: pd.DataFrame, meta: dict, where: str, protocol: str | None = None, *,
