@@ -41,7 +41,8 @@ from ..numba_cache import configure as _configure_cache
 
 _configure_cache()  # numba's cache folder before the truth's functions are decorated
 
-TRUTH_VERSION = "dampertwin-truth 2"  # 2: ports before the stacks, swept pilot, walls across chambers, passive Payne
+TRUTH_VERSION = "dampertwin-truth 3"  # 2: ports before the stacks, swept pilot, walls across chambers, passive Payne;
+# 3: the piston band's flow and force in the frame of the bore-sized chambers
 
 
 def _refresh_compiled_cache() -> None:

@@ -96,10 +96,21 @@ def walled_rates(a_r, b_r, a_c, b_c, a_b, b_b, W_r, W_c, W_t):
 
 @njit(**JIT)
 def band_leakage(dp, sd, mu, p, o):
-    """Piston band clearance rebound -> compression: (flow [m^3/s], shear
-    force on the piston [N], tension positive, dissipated power [W]) for
-    the pressure difference dp and stroke rate sd (the piston moves towards
-    the rebound chamber at sd).
+    """Piston band clearance rebound -> compression: (flow [m^3/s], force on
+    the piston [N], tension positive, dissipated power [W]) for the pressure
+    difference dp and stroke rate sd (the piston moves towards the rebound
+    chamber at sd).
+
+    Frames: the chambers are sized on the bore (A_R, A_B), so the flow is the
+    one through the plane moving with the piston face, and the force is what
+    the band adds to P_r A_R - P_c A_B. With the gap profile u(y) = dp/(2 mu L)
+    y (h - y) - sd y / h (tube wall y = 0, band y = h; White, Viscous Fluid
+    Flow, 3rd ed. 2006, 3-2): flow relative to the piston Q = c (h^3 dp /
+    (12 mu L) + h sd / 2) (the piston carries half the ring's oil along, the
+    squeezed chamber loses the other half); force = shear on the band, c (h
+    dp / 2 + mu L sd / h), minus the ring c h the pressures do not act on as
+    piston face, c h dp: c (-h dp / 2 + mu L sd / h). Power dp Q + F sd =
+    Poiseuille + Couette dissipation (>= 0).
 
     Eccentric band (effect ``band_eccentricity``, BAND_ECC = eps > 0: the
     piston off the bore's axis by eps h, the local gap h (1 + eps cos th)):
@@ -116,11 +127,11 @@ def band_leakage(dp, sd, mu, p, o):
     c = math.pi * p[o + D_PT]
     e = p[o + BAND_ECC]
     if e > 0.0:
-        Q = c * (h ** 3 * dp / (12.0 * mu * p[o + BAND_L]) * (1.0 + 1.5 * e * e) - 0.5 * h * sd)
-        F = c * (0.5 * h * dp + mu * p[o + BAND_L] * sd / (h * math.sqrt(1.0 - e * e)))
+        Q = c * (h ** 3 * dp / (12.0 * mu * p[o + BAND_L]) * (1.0 + 1.5 * e * e) + 0.5 * h * sd)
+        F = c * (-0.5 * h * dp + mu * p[o + BAND_L] * sd / (h * math.sqrt(1.0 - e * e)))
         return Q, F, dp * Q + F * sd
-    Q = c * (h ** 3 * dp / (12.0 * mu * p[o + BAND_L]) - 0.5 * h * sd)
-    F = c * (0.5 * h * dp + mu * p[o + BAND_L] * sd / h)
+    Q = c * (h ** 3 * dp / (12.0 * mu * p[o + BAND_L]) + 0.5 * h * sd)
+    F = c * (-0.5 * h * dp + mu * p[o + BAND_L] * sd / h)
     return Q, F, dp * Q + F * sd
 
 
