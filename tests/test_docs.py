@@ -146,7 +146,10 @@ def test_readme_approach_figures_are_the_committed_side_by_side():
         assert m, f"README: the approach {no} row of the side-by-side table"
         for key, printed in zip(("t71", "t72", "nrmse"), m.groups()):
             digits = len(printed.split(".")[1]) if "." in printed else 0
-            assert float(printed) == round(got[name][key], digits), (name, key, printed, got[name][key])
+            # the .md holds 3 decimals: printed to fewer, a value within half a printed digit (plus the .md's own
+            # rounding, 0.0005) is the same figure (0.855 there may be 0.8552, printed 0.86)
+            assert abs(float(printed) - got[name][key]) <= 0.5 * 10.0 ** -digits + 5e-4, (name, key, printed,
+                                                                                          got[name][key])
     m = re.search(r"rebound peak at 1\.6 A (\d+) % off,\s+approach 1's (\d+) %", readme)
     assert m, "README: the 1.6 A rebound peak sentence"
     assert (int(m[1]), int(m[2])) == (round(got["approach2"]["rebound_1.6"]), round(got["approach1"]["rebound_1.6"]))
