@@ -143,3 +143,12 @@ def test_lab_progress_in_a_log_file_has_no_carriage_returns(tmp_path):
                        cwd=ROOT, capture_output=True, text=True, env=dict(os.environ, MPLBACKEND="Agg"))
     assert r.returncode == 0, r.stderr[-2000:]
     assert "\r" not in r.stderr and "lab: 1/1" in r.stderr
+
+
+def test_sweep_results_dir_hydra_cannot_create_is_the_exception_line(tmp_path, capsys):
+    (tmp_path / "afile").write_text("not a folder")
+    code, _, err = run(["sweep", "--root", str(ROOT), "variant=baseline_1.6", f"results_dir={tmp_path}/afile/x"],
+                       capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err and 'File "' not in err, err   # not Hydra's traceback flattened into one line
+    assert "NotADirectoryError" in err and "check results_dir" in err, err

@@ -411,3 +411,29 @@ def test_discrepancy_stage_reads_only_the_tests_it_declares(tmp_path, monkeypatc
     assert "dyno" in wanted and "dyno" not in seen["tests"]
     assert seen["tests"] == {t: c for t, c in wanted.items() if t != "dyno"}
     assert "own/dyno not read by this stage" in capsys.readouterr().out
+
+
+def test_sweep_summary_leaves_out_an_earlier_runs_failures(tmp_path):
+    import time
+
+    from dampertwin.sweep import FAILED, summarize
+
+    for name in ("old_typo", "new_bad"):
+        (tmp_path / "s" / name).mkdir(parents=True)
+        (tmp_path / "s" / name / FAILED).write_text(json.dumps({"error": f"{name} failed"}))
+    os.utime(tmp_path / "s" / "old_typo" / FAILED, (time.time() - 3600, time.time() - 3600))
+    start = time.time() - 60                                            # this run began a minute ago
+    tab = summarize(tmp_path / "s", since=start)
+    assert list(tab.variant) == ["new_bad"] and (tab.status != "ok").sum() == 1
+    assert "earlier run" in (tmp_path / "s" / "summary.md").read_text() and "old_typo" in \
+        (tmp_path / "s" / "summary.md").read_text()
+    assert list(summarize(tmp_path / "s").variant) == ["new_bad", "old_typo"]   # without a start: every folder
+
+
+def test_sweep_rerun_with_the_fix_does_not_count_the_earlier_failure(tmp_path):
+    _sweep(ROOT, f"results_dir={tmp_path}", "variant=baseline_1.6", "factor=base_intake.a")   # forgot the level
+    assert (tmp_path / "t" / "baseline_1.6__base_intake.a@invalid-level" / "_FAILED.json").is_file()
+    r = _sweep(ROOT, f"results_dir={tmp_path}", "variant=baseline_1.6")
+    assert r.returncode == 0, r.stderr[-2000:]
+    md = (tmp_path / "t" / "summary.md").read_text()
+    assert "failed:" not in md and "invalid-level" in md.split("|")[0], md    # named in the note, not a row

@@ -23,6 +23,7 @@ import math
 import os
 import re
 import sys
+import time
 import traceback
 from pathlib import Path
 
@@ -228,18 +229,30 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
     return out
 
 
-def summarize(sweep_dir: Path) -> pd.DataFrame:
+STALE_SLACK = 2.0  # [s] a failure record older than the multirun's start by more than this is an earlier run's
+
+
+def summarize(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
     """One row per variant with every KPI and its change vs the baseline
     (the unperturbed baseline_1.6 case); failed variants listed with their
-    error. Writes summary.parquet and summary.md into the sweep folder."""
-    rows = []
+    error. With ``since`` (the multirun's start, epoch seconds) a failure
+    record written before it belongs to a variant this run did not run again
+    (a run retries its variants' failures): it is left out of the table and
+    named in a note. Writes summary.parquet and summary.md into the sweep folder."""
+    rows, stale = [], []
     for v in sorted(p for p in sweep_dir.iterdir() if p.is_dir() and not p.name.startswith(".")):
         if (v / COMPLETE).is_file():
             df = pd.read_parquet(v / "kpis.parquet")  # a KPI table, not a time series
             rows.append({**df.iloc[0].to_dict(), "status": "ok"})
         elif (v / FAILED).is_file():
+            if since is not None and (v / FAILED).stat().st_mtime < since - STALE_SLACK:
+                stale.append(v.name)
+                continue
             err = json.loads((v / FAILED).read_text()).get("error", "unknown error")
             rows.append({"variant": v.name, "status": "failed: " + _cell(err)})
+    if stale:
+        log.warning("left out of the summary: %d failed variant(s) of an earlier run, not run again: %s "
+                    "(delete their folders to clean up)", len(stale), ", ".join(stale))
     tab = pd.DataFrame(rows)
     if tab.empty:
         return tab
@@ -258,10 +271,27 @@ def summarize(sweep_dir: Path) -> pd.DataFrame:
                       for c, f in zip(tab["case"], tab["factor"])]
             tab[f"|{kk}| trend"] = ours
             tab[f"|{kk}| trend thesis"] = thesis
-    meta = {"sweep": sweep_dir.name, "rows": len(tab), "failed": int((tab.status != "ok").sum())}
+    meta = {"sweep": sweep_dir.name, "rows": len(tab), "failed": int((tab.status != "ok").sum()),
+            "left out (earlier runs' failures)": stale}
     write_frame(sweep_dir / "summary.parquet", tab.fillna({"factor": ""}), meta)
-    (sweep_dir / "summary.md").write_text(f"# Sweep {sweep_dir.name}\n\n" + kpi.to_markdown(tab, digits=2))
+    note = ("" if not stale else f"Left out: {len(stale)} failed variant(s) of an earlier run, not run again here: "
+            f"{_cell(', '.join(stale))}.\n\n")
+    (sweep_dir / "summary.md").write_text(f"# Sweep {sweep_dir.name}\n\n" + note + kpi.to_markdown(tab, digits=2))
     return tab
+
+
+_OS_ERROR = re.compile(r"(OSError|FileNotFoundError|NotADirectoryError|FileExistsError|PermissionError)\b")
+
+
+def _hydra_error(text: str, code) -> str:
+    """Hydra's error report on one line: its own lines, or of a Python traceback (an error Hydra did not
+    expect, e.g. a results_dir it cannot create) only the exception's last line."""
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip() and "HYDRA_FULL_ERROR" not in ln]
+    if any(ln.startswith("Traceback (most recent call last)") for ln in lines):
+        last = lines[-1]
+        hint = " (Hydra could not create its output folder: check results_dir)" if _OS_ERROR.match(last) else ""
+        return last + hint
+    return "; ".join(lines) or f"Hydra exited with {code}"
 
 
 def _cell(text: str) -> str:
@@ -382,10 +412,13 @@ try:  # the Hydra callback that writes the summary when a multirun ends
     from hydra.experimental.callback import Callback
 
     class SummaryCallback(Callback):
+        def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+            self.started = time.time()
+
         def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
             d = sweep_dir(config)
             if d.is_dir():
-                tab = summarize(d)
+                tab = summarize(d, since=getattr(self, "started", None))
                 failed = int((tab.status != "ok").sum()) if len(tab) else 0
                 log.info("summary: %s (%d variants, %d failed)", d / "summary.md", len(tab), failed)
                 _OUTCOME["all_failed"] = len(tab) > 0 and failed == len(tab)
@@ -438,9 +471,7 @@ def multirun(overrides: list[str], root: str | Path | None = None, scheduler: st
     except SystemExit as e:
         if e.code in (0, None):
             raise
-        lines = [ln.strip() for ln in held.getvalue().splitlines()
-                 if ln.strip() and "HYDRA_FULL_ERROR" not in ln]
-        raise UserError("sweep: " + ("; ".join(lines) or f"Hydra exited with {e.code}")) from None
+        raise UserError("sweep: " + _hydra_error(held.getvalue(), e.code)) from None
     finally:
         sys.argv = saved
         sys.stderr.write(held.getvalue() if not sys.exc_info()[0] else "")
