@@ -204,6 +204,23 @@ def test_stage_json_is_standard_json(tmp_path):
     assert _metrics_table({"m": {"mean_abs": None, "max_abs": 1.0}})[-1] == "| m | - | 1 |"
 
 
+def test_record_metadata_is_standard_json(tmp_path):
+    """A record's Parquet metadata is standard JSON too: a non-finite value is null, numpy values are numbers."""
+    import json
+
+    import numpy as np
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    from dampertwin.io import META_KEY, read_meta, write_frame
+
+    p = write_frame(tmp_path / "r.parquet", pd.DataFrame({"time [s]": [0.0, 1.0]}),
+                    {"noise": np.nan, "band": [-np.inf, np.float64(2.5)], "n": np.int64(3), "ok": np.bool_(True)})
+    raw = pq.read_schema(p).metadata[META_KEY].decode()
+    json.loads(raw, parse_constant=lambda c: pytest.fail(f"{c} in record metadata"))
+    assert read_meta(p) == {"noise": None, "band": [None, 2.5], "n": 3, "ok": True}
+
+
 def test_committed_json_is_standard_json():
     """Every committed JSON file parses without Infinity / NaN tokens (jq, browsers and JSON schema refuse them)."""
     import json

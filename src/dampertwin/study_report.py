@@ -20,6 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from .calibration.uncertainty import CORR_MAX, REL_CI_MAX
+from .io import json_number as _x
 
 PEAK_FLAG_PCT = 10.0  # |diff| [%] flagged in table 6.5
 PSD_FLAG_DB = 3.0     # |diff| [dB] flagged in table 6.6
@@ -67,11 +68,6 @@ def _flag_rows(t: pd.DataFrame, cols: list[str], limit: float, unit: str) -> tup
                           "worst": f"{where}, {worst} {float(r[worst]):+.2f}", "worst_abs": abs(float(r[worst]))})
     t["flag"] = mark
     return t, flags
-
-
-def _x(v, null: float = math.nan) -> float:
-    """A number read from the study's standard JSON: null (written for a non-finite value) as ``null``."""
-    return null if v is None else v
 
 
 def _band(b) -> list[float]:

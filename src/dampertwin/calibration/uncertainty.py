@@ -55,6 +55,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..io import json_number
+
 REL_CI_MAX = 1.0   # CI half-width / |value| above which a parameter is undetermined
 CORR_MAX = 0.95    # |correlation| above which a pair is not separately identifiable
 SV_MIN = 1e-6      # singular value / largest singular value of the scaled Jacobian: a singular direction
@@ -348,7 +350,7 @@ METHOD = ("linearised least squares at the optimum: covariance s^2 (J^T J)^+ n /
 
 def _bound(x, sign: int) -> float:
     """An interval end or width read back from standard JSON (null = unbounded) as +-inf."""
-    return sign * np.inf if x is None else x
+    return json_number(x, sign * np.inf)
 
 
 def summary(u: dict) -> dict:

@@ -7,6 +7,7 @@ Parquet schema under the key ``dampertwin``.
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 from pathlib import Path
@@ -89,7 +90,7 @@ def write_frame(path: str | os.PathLike, df: pd.DataFrame, meta: dict) -> Path:
     table = pa.Table.from_pandas(df, preserve_index=False)
     md = dict(table.schema.metadata or {})
     md.pop(b"pandas", None)
-    md[META_KEY] = json.dumps(meta, sort_keys=True, default=_json_default).encode()
+    md[META_KEY] = json.dumps(json_safe(meta), sort_keys=True, allow_nan=False).encode()
     table = table.replace_schema_metadata(md)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
@@ -101,18 +102,10 @@ def write_frame(path: str | os.PathLike, df: pd.DataFrame, meta: dict) -> Path:
     return path
 
 
-def _json_default(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-
 def json_safe(o):
     """``o`` as standard JSON values (RFC 8259 has no Infinity or NaN): numpy scalars / arrays as numbers /
     lists, a non-finite number (an unbounded interval end, an undefined ratio) as null. Every JSON file the
-    stages and the CLI write goes through it, with ``allow_nan=False``."""
+    stages and the CLI write, and a record's Parquet metadata, goes through it, with ``allow_nan=False``."""
     if isinstance(o, dict):
         return {k: json_safe(v) for k, v in o.items()}
     if isinstance(o, (list, tuple, np.ndarray)):
@@ -122,6 +115,12 @@ def json_safe(o):
     if isinstance(o, np.bool_):
         return bool(o)
     return int(o) if isinstance(o, np.integer) else o
+
+
+def json_number(v, null: float = math.nan) -> float:
+    """A number read back from standard JSON (:func:`json_safe`): null, written for a non-finite value,
+    as ``null`` (e.g. -inf / +inf for the ends of an unbounded interval)."""
+    return null if v is None else v
 
 
 def read_meta(path: str | os.PathLike) -> dict:
@@ -264,6 +263,25 @@ def check_frame(df: pd.DataFrame, meta: dict, where: str, protocol: str | None =
         raise DataError([f"{where}: unknown protocol {protocol!r}; expected one of {', '.join(REQUIRED)}"])
     if len(df) == 0:
         raise DataError([f"{where}: empty record: no rows (a header of {len(df.columns)} columns only); expected a record"])
+    qty, numeric = _check_columns(df, where, protocol)
+    labels = df["run"].to_numpy() if "run" in df else np.zeros(len(df), int)
+    order = list(dict.fromkeys(labels.tolist()))
+    errors = [] if order else [f"{where}: no rows; expected a record"]
+    for run in order:
+        sel = labels == run
+        label = f"{where}" + (f" run {run!r}" if "run" in df else "")
+        want = rate.get(str(run)) if isinstance(rate, dict) else rate
+        errors += _check_run(numeric, qty, sel, label, protocol, want)
+    errors += _check_ranges(numeric, qty, where, current_range)
+    if errors:
+        raise DataError(errors)
+    return df
+
+
+def _check_columns(df: pd.DataFrame, where: str, protocol: str | None) -> tuple[dict[str, str], dict[str, np.ndarray]]:
+    """The run labels and the 'quantity [unit]' columns: SI units, one column per quantity, the protocol's
+    required quantities, finite numbers. Returns (quantity -> column, quantity -> values); a DataError
+    listing every problem otherwise."""
     errors: list[str] = []
     qty: dict[str, str] = {}
     if "run" in df:
@@ -312,49 +330,53 @@ def check_frame(df: pd.DataFrame, meta: dict, where: str, protocol: str | None =
         numeric[q] = x
     if errors:
         raise DataError(errors)
+    return qty, numeric
+
+
+def _check_run(numeric: dict, qty: dict, sel: np.ndarray, label: str, protocol: str | None,
+               want: float | None) -> list[str]:
+    """One run's time axis (increasing, uniform, its protocol's rate and duration) and its excited
+    quantities (not constant: a dead sensor). Returns the problems found."""
+    errors: list[str] = []
     tcol = qty["time"]
-    labels = df["run"].to_numpy() if "run" in df else np.zeros(len(df), int)
-    order = list(dict.fromkeys(labels.tolist()))
-    if not order:
-        errors.append(f"{where}: no rows; expected a record")
-    for run in order:
-        sel = labels == run
-        label = f"{where}" + (f" run {run!r}" if "run" in df else "")
-        t = numeric["time"][sel]
-        dt = np.diff(t)
-        if len(t) < 2:
-            errors.append(f"{label}: column {tcol!r}: fewer than 2 samples")
-            continue
-        if np.any(dt == 0):
-            errors.append(f"{label}: column {tcol!r}: duplicated time at {float(t[1:][dt == 0][0])!r} s")
-        elif np.all(dt < 0):
-            errors.append(f"{label}: column {tcol!r}: reversed time axis (time decreases from {float(t[0])!r} to "
-                          f"{float(t[-1])!r} s); expected increasing time")
-            continue
-        elif np.any(dt < 0):
-            errors.append(f"{label}: column {tcol!r}: time not increasing at {float(t[1:][dt < 0][0])!r} s")
-            continue
-        elif grid_deviation(t) > UNIFORM_TOL:
-            errors.append(f"{label}: column {tcol!r}: non-uniform sampling (interval {dt.min():.6g} .. {dt.max():.6g} s; "
-                          f"a time stamp {grid_deviation(t):.2g} intervals off the uniform grid, at most {UNIFORM_TOL:g}); "
-                          f"a uniform grid is required")
-        else:
-            want = rate.get(str(run)) if isinstance(rate, dict) else rate
-            fs = 1.0 / float(np.mean(dt))
-            if protocol in MIN_RATE and fs < MIN_RATE[protocol]:
-                errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz (measured from the time stamps); "
-                              f"{'an' if protocol[0] in 'aeiou' else 'a'} {protocol} record needs >= "
-                              f"{MIN_RATE[protocol]:g} Hz")
-            if want is not None and abs(fs - want) > RATE_TOL * want:
-                errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz; protocol {protocol} records at "
-                              f"{want:g} Hz ({_rate_hint(fs, want)})")
-        if protocol is not None and t[-1] - t[0] < MIN_DURATION[protocol] * (1 - 1e-9):
-            errors.append(f"{label}: record lasts {t[-1] - t[0]:.4g} s; protocol {protocol} needs >= "
-                          f"{MIN_DURATION[protocol]:.4g} s")
-        for q in EXCITED.get(protocol, ()):
-            if q in numeric and np.ptp(numeric[q][sel]) == 0:
-                errors.append(f"{label}: column {qty[q]!r} is constant ({float(numeric[q][sel][0])!r}); expected a record "
-                              f"of the excited test (sensor disconnected?)")
+    t = numeric["time"][sel]
+    dt = np.diff(t)
+    if len(t) < 2:
+        return [f"{label}: column {tcol!r}: fewer than 2 samples"]
+    if np.any(dt == 0):
+        errors.append(f"{label}: column {tcol!r}: duplicated time at {float(t[1:][dt == 0][0])!r} s")
+    elif np.all(dt < 0):
+        return [f"{label}: column {tcol!r}: reversed time axis (time decreases from {float(t[0])!r} to "
+                f"{float(t[-1])!r} s); expected increasing time"]
+    elif np.any(dt < 0):
+        return [f"{label}: column {tcol!r}: time not increasing at {float(t[1:][dt < 0][0])!r} s"]
+    elif grid_deviation(t) > UNIFORM_TOL:
+        errors.append(f"{label}: column {tcol!r}: non-uniform sampling (interval {dt.min():.6g} .. {dt.max():.6g} s; "
+                      f"a time stamp {grid_deviation(t):.2g} intervals off the uniform grid, at most {UNIFORM_TOL:g}); "
+                      f"a uniform grid is required")
+    else:
+        fs = 1.0 / float(np.mean(dt))
+        if protocol in MIN_RATE and fs < MIN_RATE[protocol]:
+            errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz (measured from the time stamps); "
+                          f"{'an' if protocol[0] in 'aeiou' else 'a'} {protocol} record needs >= "
+                          f"{MIN_RATE[protocol]:g} Hz")
+        if want is not None and abs(fs - want) > RATE_TOL * want:
+            errors.append(f"{label}: column {tcol!r}: sampling rate {fs:.6g} Hz; protocol {protocol} records at "
+                          f"{want:g} Hz ({_rate_hint(fs, want)})")
+    if protocol is not None and t[-1] - t[0] < MIN_DURATION[protocol] * (1 - 1e-9):
+        errors.append(f"{label}: record lasts {t[-1] - t[0]:.4g} s; protocol {protocol} needs >= "
+                      f"{MIN_DURATION[protocol]:.4g} s")
+    for q in EXCITED.get(protocol, ()):
+        if q in numeric and np.ptp(numeric[q][sel]) == 0:
+            errors.append(f"{label}: column {qty[q]!r} is constant ({float(numeric[q][sel][0])!r}); expected a record "
+                          f"of the excited test (sensor disconnected?)")
+    return errors
+
+
+def _check_ranges(numeric: dict, qty: dict, where: str, current_range: tuple[float, float] | None) -> list[str]:
+    """Physical ranges that catch a wrong unit under an SI header (degrees Celsius as kelvin, bar or gauge
+    pressure as absolute pascal) and a current outside the active-valve map. Returns the problems found."""
+    errors: list[str] = []
     if "oil temperature" in numeric:
         T = numeric["oil temperature"]
         bad = T[(T < T_OIL_RANGE[0]) | (T > T_OIL_RANGE[1])]
@@ -375,9 +397,7 @@ def check_frame(df: pd.DataFrame, meta: dict, where: str, protocol: str | None =
         if len(out):
             errors.append(f"{where}: column {qty['current']!r}: current {float(out[0])!r} A outside the active-valve map "
                           f"[{lo}, {hi}] A")
-    if errors:
-        raise DataError(errors)
-    return df
+    return errors
 
 
 def _rate_hint(fs: float, want: float) -> str:
