@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from _approach2 import OUT2, damper_record, profile_block
-from _common import CONF, study_design, config_hash, seed_for, stage, staged_dir, write_json, write_overlay
+from _common import CONF, study_design, valve_map, config_hash, seed_for, stage, staged_dir, write_json, write_overlay
 from dampertwin.calibration import approach2
 from dampertwin.calibration.concurrent import progress_figure
 from dampertwin.calibration.ga import GASettings
@@ -62,6 +62,7 @@ def main() -> None:
     print(f"approach2_fit: {res.evaluations} evaluations in {wall:.1f} s wall "
           f"({wall / max(res.evaluations, 1):.2f} s each)", flush=True)  # not an artifact: same config, same bytes
     meta = {"fit": "approach2_fit", "profile": cfg.profile.name, "seed": seed, "config_hash": config_hash(),
+            "valve_map": valve_map(),
             "objective": "Algorithm 1: eq. 7.1 per valve group, unweighted int|F_test - F_sim| dt [N*s] for the "
                          "compliance group and the best solution"}
     with staged_dir(OUT2 / "fit") as tmp:
@@ -73,6 +74,7 @@ def main() -> None:
             "group_objectives_best": res.best_group_objectives, "best_evaluation": res.best_evaluation,
             "evaluations": res.evaluations, "failed_simulations": res.failed, "failure_reasons": res.failures,
             "values": res.best, "bound_hits": res.bound_hits, "fitted_valve_parameters": free,
+            "valve_map": meta["valve_map"],
             "fixed_at_drawings": {k: float(d[k]) for k in fixed},
             "identifiability": "results/approach2/identifiability/determined.json (identifiability.png)"})
         fig = progress_figure(res.history, res.groups, f"Concurrent GAs, profile {cfg.profile.name} (thesis fig. 7.7)")

@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from _approach2 import OUT2, damper_record, profile_block
-from _common import CONF, study_design, config_hash, seed_for, stage, staged_dir, write_json
+from _common import CONF, study_design, valve_map, config_hash, seed_for, stage, staged_dir, write_json
 from dampertwin.calibration import approach2, sensitivity as sens
 from dampertwin.design import yaml_load_file
 from dampertwin.errors import UserError
@@ -59,6 +59,7 @@ def main() -> None:
     df["run"] = np.tile(labels[prob.run], G)
     df["weight [-]"] = W.ravel()
     meta = {"stage": "approach2_sensitivity", "profile": cfg.profile.name, "seed": seed, "config_hash": config_hash(),
+            "valve_map": valve_map(),
             "measured_seed": mmeta.get("seed"), "synthetic": bool(mmeta.get("synthetic")), **res.meta,
             "weights": {"rule": wset.rule, "clip": list(wset.clip), "smooth_s": wset.smooth_s,
                         "normalise": wset.normalise},
@@ -86,7 +87,7 @@ def main() -> None:
             "mean_S1": {g: float(np.mean(res.S1[i, live])) for i, g in enumerate(res.groups)},
             "mean_conf": {g: float(np.mean(res.S1_conf[i, live])) for i, g in enumerate(res.groups)},
             "sum_mean_S1": float(np.sum(np.mean(res.S1[:, live], axis=1))),
-            "weight_rule": wset.rule,
+            "weight_rule": wset.rule, "valve_map": meta["valve_map"],
             "zero_weight_fraction": {g: float(np.mean(W[i, live] == 0)) for i, g in enumerate(res.groups)},
             "convergence": conv})
 

@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from _approach2 import OUT2
-from _common import CONF, study_design, config, measured_dir, seed_for, stage, staged_dir, write_fit
+from _common import CONF, study_design, valve_map, config, measured_dir, seed_for, stage, staged_dir, write_fit
 from dampertwin.calibration.ga import GASettings
 from dampertwin.calibration.identifiability import sweep_points, top_mount_report
 from dampertwin.calibration.module_topmount import calibration, fit_module_top_mount
@@ -77,14 +77,16 @@ def main() -> None:
         force_bandwidth=proto.get("sensors", {}).get("force"))
     best = {**res.best, "top_mount.F_LD": coef}  # sensor.* (nuisance) values are kept out of the overlay
     meta = {"fit": "approach2_topmount", "test": TEST, "run": cal["dynamic_run"], "profile": cfg.profile.name,
-            "seed": seed, "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]", "static_curve": kept,
+            "seed": seed, "valve_map": valve_map(), "objective": "eq. 6.3 int|F_test - F_sim| dt [N*s]",
+            "static_curve": kept,
             "input": "the LVDT's rod displacement against the top-mount housing (thesis 7.2)"}
     # what the record determines: |K*| and loss angle at the component sweep's frequencies (thesis fig. 7.5)
     determined = top_mount_report(d.with_overrides({"top_mount.F_LD": coef}), res.best, res.uncertainty, res.specs,
                                   *sweep_points(load_protocol(CONF / "test" / "topmount.yaml")))
     out = OUT2 / "topmount"
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "N*s", d.hash(), best=best, extra={"determined": determined})
+        write_fit(tmp, res, meta, "N*s", d.hash(), best=best,
+                  extra={"determined": determined, "valve_map": meta["valve_map"]})
         fitted = d.with_overrides({k: v for k, v in best.items() if not k.startswith("sensor.")})
         figure(tmp / "topmount.png", d, fitted, rec, coef, kept, cal["input_cutoff"], cal["dynamic_run"])
     ck.path.unlink(missing_ok=True)  # the fit is complete: its checkpoint is spent

@@ -118,7 +118,8 @@ def fit_summary(cfg) -> dict:
                               "uncertainty": summary(u) if u.get("parameters") else None,
                               "nuisance": m.get("nuisance", {}), "undetermined": m.get("undetermined"),
                               "bounds": m.get("bounds", {}), "bound_hits": m.get("bound_hits", []),
-                              **({"determined": m["determined"]} if m.get("determined") else {})}
+                              **({"determined": m["determined"]} if m.get("determined") else {}),
+                              **({"valve_map": m["valve_map"]} if "valve_map" in m else {})}
     return fits
 
 

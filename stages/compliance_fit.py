@@ -4,8 +4,8 @@ baseline valve fits applied."""
 
 import matplotlib.pyplot as plt
 
-from _common import (CONF, OUT, study_design, checkpoint, checkpoint_store, config, design_values, measured_dir,
-                     read_overlay, seed_for, stage, staged_dir, write_fit)
+from _common import (CONF, OUT, study_design, valve_map, checkpoint, checkpoint_store, config, design_values,
+                     measured_dir, read_overlay, seed_for, stage, staged_dir, write_fit)
 from dampertwin.calibration.approach1 import fit_compliance
 from dampertwin.calibration.ga import GASettings
 from dampertwin.design import yaml_load_file
@@ -32,10 +32,10 @@ def main() -> None:
                          checkpoint=checkpoint_store("compliance"), scheduler=cfg.profile.scheduler,
                          polish_settings=PolishSettings.from_config(cfg.profile.polish),
                          force_bandwidth=bandwidth)
-    meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed,
+    meta = {"fit": "compliance_fit", "profile": cfg.profile.name, "seed": seed, "valve_map": valve_map(),
             "objective": "eq. 6.2 int|F_test - F_sim| dt [N*s]"}
     with staged_dir(out) as tmp:  # all outputs or none
-        write_fit(tmp, res, meta, "N*s", d.hash(), extra=dict(res.best))
+        write_fit(tmp, res, meta, "N*s", d.hash(), extra={**res.best, "valve_map": meta["valve_map"]})
         fitted = d.with_overrides(design_values(res.best))
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
         name, g = runs(meas)[-1]

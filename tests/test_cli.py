@@ -151,4 +151,11 @@ def test_sweep_results_dir_hydra_cannot_create_is_the_exception_line(tmp_path, c
                        capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "Traceback" not in err and 'File "' not in err, err   # not Hydra's traceback flattened into one line
-    assert "NotADirectoryError" in err and "check results_dir" in err, err
+    assert "NotADirectoryError" in err and "under results_dir" in err, err
+
+
+def test_sweep_hydra_exception_keeps_its_message_lines(tmp_path, capsys):
+    code, _, err = run(["sweep", "--root", str(ROOT), "variant=baseline_1.6", "results_dir=${oops}"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "InterpolationKeyError: Interpolation key 'oops' not found" in err and "Traceback" not in err, err
+    assert "results_dir)" not in err                          # no output-folder hint for an error that is not one

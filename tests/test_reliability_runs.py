@@ -414,20 +414,23 @@ def test_discrepancy_stage_reads_only_the_tests_it_declares(tmp_path, monkeypatc
 
 
 def test_sweep_summary_leaves_out_an_earlier_runs_failures(tmp_path):
-    import time
+    from dampertwin.sweep import FAILED, failure_attempts, summarize
 
-    from dampertwin.sweep import FAILED, summarize
-
-    for name in ("old_typo", "new_bad"):
-        (tmp_path / "s" / name).mkdir(parents=True)
-        (tmp_path / "s" / name / FAILED).write_text(json.dumps({"error": f"{name} failed"}))
-    os.utime(tmp_path / "s" / "old_typo" / FAILED, (time.time() - 3600, time.time() - 3600))
-    start = time.time() - 60                                            # this run began a minute ago
-    tab = summarize(tmp_path / "s", since=start)
-    assert list(tab.variant) == ["new_bad"] and (tab.status != "ok").sum() == 1
-    assert "earlier run" in (tmp_path / "s" / "summary.md").read_text() and "old_typo" in \
-        (tmp_path / "s" / "summary.md").read_text()
-    assert list(summarize(tmp_path / "s").variant) == ["new_bad", "old_typo"]   # without a start: every folder
+    d = tmp_path / "s"
+    for name in ("old_typo", "rerun_bad"):
+        (d / name).mkdir(parents=True)
+        (d / name / FAILED).write_text(json.dumps({"error": f"{name} failed", "attempt": f"{name}-1"}))
+    before = failure_attempts(d)                                        # the multirun starts
+    (d / "rerun_bad" / FAILED).write_text(json.dumps({"error": "failed again", "attempt": "rerun_bad-2"}))
+    (d / "new_bad").mkdir()
+    (d / "new_bad" / FAILED).write_text(json.dumps({"error": "new", "attempt": "new_bad-1"}))
+    tab = summarize(d, before=before)
+    assert list(tab.variant) == ["new_bad", "rerun_bad"] and (tab.status != "ok").sum() == 2   # this run's failures
+    md = (d / "summary.md").read_text()
+    assert "earlier run" in md and "old_typo" in md.split("|")[0] and "old_typo failed" not in md
+    assert list(summarize(d).variant) == ["new_bad", "old_typo", "rerun_bad"]   # without a start: every folder
+    summarize(d, before=failure_attempts(d))                            # nothing run: every record left out...
+    assert "No variant results" in (d / "summary.md").read_text()        # ...and the summary says so, not the last one
 
 
 def test_sweep_rerun_with_the_fix_does_not_count_the_earlier_failure(tmp_path):
@@ -437,3 +440,6 @@ def test_sweep_rerun_with_the_fix_does_not_count_the_earlier_failure(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     md = (tmp_path / "t" / "summary.md").read_text()
     assert "failed:" not in md and "invalid-level" in md.split("|")[0], md    # named in the note, not a row
+    _sweep(ROOT, f"results_dir={tmp_path}", "variant=baseline_0.9", "fail_on=baseline_0.9")   # this run's failure
+    rows = [ln for ln in (tmp_path / "t" / "summary.md").read_text().splitlines() if "failed:" in ln]
+    assert len(rows) == 1 and "baseline_0.9" in rows[0]                 # counted; the old typo still is not

@@ -215,10 +215,11 @@ def test_record_metadata_is_standard_json(tmp_path):
     from dampertwin.io import META_KEY, read_meta, write_frame
 
     p = write_frame(tmp_path / "r.parquet", pd.DataFrame({"time [s]": [0.0, 1.0]}),
-                    {"noise": np.nan, "band": [-np.inf, np.float64(2.5)], "n": np.int64(3), "ok": np.bool_(True)})
+                    {"noise": np.nan, "band": [-np.inf, np.float64(2.5)], "n": np.int64(3), "ok": np.bool_(True),
+                     "scalar": np.array(0.5)})
     raw = pq.read_schema(p).metadata[META_KEY].decode()
     json.loads(raw, parse_constant=lambda c: pytest.fail(f"{c} in record metadata"))
-    assert read_meta(p) == {"noise": None, "band": [None, 2.5], "n": 3, "ok": True}
+    assert read_meta(p) == {"noise": None, "band": [None, 2.5], "n": 3, "ok": True, "scalar": 0.5}
 
 
 def test_committed_json_is_standard_json():
@@ -275,6 +276,18 @@ def test_committed_results_came_from_this_code():
     got = {str(p.relative_to(ROOT)): json.loads(p.read_text()).get("code_hash") for p in _committed_metrics()}
     stale = {k: v for k, v in got.items() if v != code_hash()}
     assert not stale, f"results made with other code than {code_hash()}: {stale}"
+
+
+def test_committed_fits_name_the_active_valve_map_of_params():
+    """The compliance fit runs through the active valve: fits.json records which map (params.yaml valve_map)."""
+    import json
+
+    import yaml
+
+    fits = json.loads((ROOT / "results" / "approach1" / "fits.json").read_text())["fits"]
+    want = yaml.safe_load((ROOT / "params.yaml").read_text()).get("valve_map", "part")
+    assert fits["compliance"].get("valve_map") == want
+    assert all("valve_map" not in f for n, f in fits.items() if n.startswith("valves/"))  # the flow bench has none
 
 
 def test_dvc_lock_matches_the_code_and_configs():

@@ -23,8 +23,8 @@ import math
 import os
 import re
 import sys
-import time
 import traceback
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -224,37 +224,53 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
     except Exception as e:  # a failed variant is reported and does not stop the sweep
         (out / COMPLETE).unlink(missing_ok=True)
         msg = one_line(e) if isinstance(e, UserError) else f"{type(e).__name__}: {one_line(e)}"
-        (out / FAILED).write_text(json.dumps({"error": msg, "traceback": traceback.format_exc(), "config_hash": h}))
+        (out / FAILED).write_text(json.dumps({"error": msg, "traceback": traceback.format_exc(), "config_hash": h,
+                                              "attempt": uuid.uuid4().hex}))
         log.error("%s: FAILED: %s", name, msg)
     return out
 
 
-STALE_SLACK = 2.0  # [s] a failure record older than the multirun's start by more than this is an earlier run's
+def failure_attempts(sweep_dir: Path) -> dict[str, str | None]:
+    """variant -> attempt id of each failure record in a sweep folder (None: a record without one). A
+    multirun notes them at its start: a variant it runs writes a new record with a new id, or none."""
+    out = {}
+    for f in sorted(sweep_dir.glob(f"*/{FAILED}")) if sweep_dir.is_dir() else []:
+        try:
+            out[f.parent.name] = json.loads(f.read_text()).get("attempt")
+        except (OSError, ValueError):
+            out[f.parent.name] = None
+    return out
 
 
-def summarize(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
+def summarize(sweep_dir: Path, before: dict[str, str | None] | None = None) -> pd.DataFrame:
     """One row per variant with every KPI and its change vs the baseline
     (the unperturbed baseline_1.6 case); failed variants listed with their
-    error. With ``since`` (the multirun's start, epoch seconds) a failure
-    record written before it belongs to a variant this run did not run again
-    (a run retries its variants' failures): it is left out of the table and
-    named in a note. Writes summary.parquet and summary.md into the sweep folder."""
+    error. With ``before`` (:func:`failure_attempts` at the multirun's start)
+    a failure record still the same attempt belongs to a variant this run did
+    not run again (a run retries its variants' failures): it is left out of
+    the table and named in a note. Writes summary.parquet and summary.md into
+    the sweep folder (an empty table too)."""
     rows, stale = [], []
     for v in sorted(p for p in sweep_dir.iterdir() if p.is_dir() and not p.name.startswith(".")):
         if (v / COMPLETE).is_file():
             df = pd.read_parquet(v / "kpis.parquet")  # a KPI table, not a time series
             rows.append({**df.iloc[0].to_dict(), "status": "ok"})
         elif (v / FAILED).is_file():
-            if since is not None and (v / FAILED).stat().st_mtime < since - STALE_SLACK:
+            rec = json.loads((v / FAILED).read_text())
+            if before is not None and v.name in before and rec.get("attempt") == before[v.name]:
                 stale.append(v.name)
                 continue
-            err = json.loads((v / FAILED).read_text()).get("error", "unknown error")
-            rows.append({"variant": v.name, "status": "failed: " + _cell(err)})
+            rows.append({"variant": v.name, "status": "failed: " + _cell(rec.get("error", "unknown error"))})
     if stale:
         log.warning("left out of the summary: %d failed variant(s) of an earlier run, not run again: %s "
                     "(delete their folders to clean up)", len(stale), ", ".join(stale))
     tab = pd.DataFrame(rows)
+    note = ("" if not stale else f"Left out: {len(stale)} failed variant(s) of an earlier run, not run again here: "
+            f"{_cell(', '.join(stale))}.\n\n")
     if tab.empty:
+        write_frame(sweep_dir / "summary.parquet", pd.DataFrame({"variant": pd.Series(dtype=str)}),
+                    {"sweep": sweep_dir.name, "rows": 0, "failed": 0, "left out (earlier runs' failures)": stale})
+        (sweep_dir / "summary.md").write_text(f"# Sweep {sweep_dir.name}\n\n{note}No variant results.\n")
         return tab
     base = tab[(tab.get("case") == BASELINE_CASE) & (tab.get("factor", "") == "") & (tab.status == "ok")]
     for k in KPIS:
@@ -274,24 +290,26 @@ def summarize(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
     meta = {"sweep": sweep_dir.name, "rows": len(tab), "failed": int((tab.status != "ok").sum()),
             "left out (earlier runs' failures)": stale}
     write_frame(sweep_dir / "summary.parquet", tab.fillna({"factor": ""}), meta)
-    note = ("" if not stale else f"Left out: {len(stale)} failed variant(s) of an earlier run, not run again here: "
-            f"{_cell(', '.join(stale))}.\n\n")
     (sweep_dir / "summary.md").write_text(f"# Sweep {sweep_dir.name}\n\n" + note + kpi.to_markdown(tab, digits=2))
     return tab
 
 
+_EXC_LINE = re.compile(r"[A-Za-z_][\w.]*(Error|Exception|Exit|Interrupt)\b:?")  # a traceback's exception line
 _OS_ERROR = re.compile(r"(OSError|FileNotFoundError|NotADirectoryError|FileExistsError|PermissionError)\b")
 
 
-def _hydra_error(text: str, code) -> str:
+def _hydra_error(text: str, code, results_dir: str | None = None) -> str:
     """Hydra's error report on one line: its own lines, or of a Python traceback (an error Hydra did not
-    expect, e.g. a results_dir it cannot create) only the exception's last line."""
+    expect, e.g. a results_dir it cannot create) the last exception with its message lines and notes;
+    an OS error naming ``results_dir`` gets a hint."""
     lines = [ln.strip() for ln in text.splitlines() if ln.strip() and "HYDRA_FULL_ERROR" not in ln]
-    if any(ln.startswith("Traceback (most recent call last)") for ln in lines):
-        last = lines[-1]
-        hint = " (Hydra could not create its output folder: check results_dir)" if _OS_ERROR.match(last) else ""
-        return last + hint
-    return "; ".join(lines) or f"Hydra exited with {code}"
+    if not any(ln.startswith("Traceback (most recent call last)") for ln in lines):
+        return "; ".join(lines) or f"Hydra exited with {code}"
+    start = max((i for i, ln in enumerate(lines) if _EXC_LINE.match(ln)), default=len(lines) - 1)
+    block = lines[start:]
+    hint = (" (Hydra could not create its output folder under results_dir)"
+            if results_dir and _OS_ERROR.match(block[0]) and results_dir in " ".join(block) else "")
+    return "; ".join(block) + hint
 
 
 def _cell(text: str) -> str:
@@ -413,12 +431,12 @@ try:  # the Hydra callback that writes the summary when a multirun ends
 
     class SummaryCallback(Callback):
         def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
-            self.started = time.time()
+            self.before = failure_attempts(sweep_dir(config))
 
         def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
             d = sweep_dir(config)
             if d.is_dir():
-                tab = summarize(d, since=getattr(self, "started", None))
+                tab = summarize(d, before=getattr(self, "before", None))
                 failed = int((tab.status != "ok").sum()) if len(tab) else 0
                 log.info("summary: %s (%d variants, %d failed)", d / "summary.md", len(tab), failed)
                 _OUTCOME["all_failed"] = len(tab) > 0 and failed == len(tab)
@@ -471,7 +489,8 @@ def multirun(overrides: list[str], root: str | Path | None = None, scheduler: st
     except SystemExit as e:
         if e.code in (0, None):
             raise
-        raise UserError("sweep: " + _hydra_error(held.getvalue(), e.code)) from None
+        rd = next((a.split("=", 1)[1].strip("'\"") for a in reversed(argv) if a.startswith("results_dir=")), None)
+        raise UserError("sweep: " + _hydra_error(held.getvalue(), e.code, rd)) from None
     finally:
         sys.argv = saved
         sys.stderr.write(held.getvalue() if not sys.exc_info()[0] else "")

@@ -108,13 +108,17 @@ def json_safe(o):
     stages and the CLI write, and a record's Parquet metadata, goes through it, with ``allow_nan=False``."""
     if isinstance(o, dict):
         return {k: json_safe(v) for k, v in o.items()}
+    if isinstance(o, np.ndarray) and o.ndim == 0:
+        return json_safe(o.item())
     if isinstance(o, (list, tuple, np.ndarray)):
         return [json_safe(v) for v in (o.tolist() if isinstance(o, np.ndarray) else o)]
     if isinstance(o, (float, np.floating)):
         return float(o) if np.isfinite(o) else None
     if isinstance(o, np.bool_):
         return bool(o)
-    return int(o) if isinstance(o, np.integer) else o
+    if isinstance(o, np.integer):
+        return int(o)
+    return json_safe(o.item()) if isinstance(o, np.generic) else o
 
 
 def json_number(v, null: float = math.nan) -> float:
