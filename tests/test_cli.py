@@ -155,7 +155,11 @@ def test_sweep_results_dir_hydra_cannot_create_is_the_exception_line(tmp_path, c
 
 
 def test_sweep_hydra_exception_keeps_its_message_lines(tmp_path, capsys):
-    code, _, err = run(["sweep", "--root", str(ROOT), "variant=baseline_1.6", "results_dir=${oops}"], capsys)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the summary callback does not stumble over the same error first
+        code, _, err = run(["sweep", "--root", str(ROOT), "variant=baseline_1.6", "results_dir=${oops}"], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "InterpolationKeyError: Interpolation key 'oops' not found" in err and "Traceback" not in err, err
     assert "results_dir)" not in err                          # no output-folder hint for an error that is not one

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
 from . import kpi
 from .config import repo_root
@@ -431,7 +432,10 @@ try:  # the Hydra callback that writes the summary when a multirun ends
 
     class SummaryCallback(Callback):
         def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
-            self.before = failure_attempts(sweep_dir(config))
+            try:
+                self.before = failure_attempts(sweep_dir(config))
+            except (OmegaConfBaseException, OSError):  # a results_dir Hydra reports itself, in a moment
+                self.before = None
 
         def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
             d = sweep_dir(config)
