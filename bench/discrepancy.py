@@ -383,7 +383,7 @@ def one_case(it: dict) -> dict:
     shutil.rmtree(work / f"out{k}", ignore_errors=True)  # the bench's own folder: a rerun replaces it
     doc = entry.main(str(start), str(data), str(work / f"out{k}"), profile="ci",
                      seed=it["seed"], progress=False, tests=it["tests"], workers=it["lab_workers"])
-    rfile = work / f"out{k}" / "resolvability.json"   # written with `none` verdicts
+    rfile = work / f"out{k}" / "resolvability.json"   # `none`: against noise; `unexplained`: the misfit too
     rs = {r["effect"]: r for r in json.loads(rfile.read_text())} if rfile.is_file() else {}
     lead = next((c for c in doc["candidates"] if "+" not in c["effect"]), None)  # the first-round ranking's top
     return {"cell": it["cell"], "truth": it["truth"], "verdict": doc["verdict"], "effects": doc["effects"],

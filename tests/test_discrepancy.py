@@ -221,6 +221,12 @@ def test_out_of_library_artefact_is_unexplained(control, tmp_path):
     doc = _run(art, tmp_path / "out")
     assert doc["verdict"] == "unexplained", doc
     assert doc["effects"] == []
+    # what the library could have shown through the misfit the calibrated design leaves: the model
+    # error only raises a record's gate, and does so where it exceeds the noise quantile
+    rs = json.loads((tmp_path / "out" / "resolvability.json").read_text())
+    assert rs and all(r["ratio"] <= r["ratio_noise"] + 1e-9 for r in rs if r["ratio"] is not None), rs
+    assert any(r["ratio"] < 0.9 * r["ratio_noise"] for r in rs if r["ratio"] is not None), rs
+    assert "raised to the chi^2 of the misfit" in (tmp_path / "out" / "report.md").read_text()
 
 
 def _exit(argv, capsys):

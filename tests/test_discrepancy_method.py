@@ -198,6 +198,40 @@ def test_record_gate_is_a_bonferroni_chi_square_test():
     assert worst_record(pr, z, m2, 0.01)[1] != "r0"
 
 
+def test_record_gate_raised_to_a_records_misfit():
+    """worst_record's ``misfit`` (an `unexplained` verdict's model error per record): a record whose
+    misfit chi^2 exceeds its quantile gets that chi^2 as its gate, so a signature there counts only
+    in proportion to it; a record whose misfit stays under the quantile keeps the noise gate, and
+    without a misfit the test is the noise-only one."""
+    from types import SimpleNamespace
+
+    from scipy.stats import chi2 as chi2_dist
+
+    from dampertwin.discrepancy.decision import record_chi2, worst_record
+
+    units = [SimpleNamespace(labels=[None] * 8, key=f"r{i}") for i in range(3)]
+    pr = SimpleNamespace(units=units)
+    mask = np.ones(24, bool)
+    q = float(chi2_dist.ppf(1 - 0.01 / 3, 8))
+    sig = np.zeros(24)
+    sig[:8] = 1.5 * np.sqrt(q / 8)          # r0: chi^2 = 2.25 q
+    noise = worst_record(pr, sig, mask, 0.01)
+    assert noise[1] == "r0" and np.isclose(noise[0], 2.25)
+    misfit = np.zeros(24)
+    misfit[:8] = 3.0 * np.sqrt(q / 8)       # r0's model error: chi^2 = 9 q
+    misfit[8:16] = 0.5 * np.sqrt(q / 8)     # r1's: under its quantile
+    m = record_chi2(pr, misfit, mask)
+    assert np.isclose(m["r0"], 9 * q) and np.isclose(m["r1"], 0.25 * q) and m["r2"] == 0.0
+    raised = worst_record(pr, sig, mask, 0.01, m)
+    assert raised[1] == "r0" and np.isclose(raised[0], 0.25)   # 2.25 q over 9 q: hidden under the model error
+    sig[8:16] = 1.2 * np.sqrt(q / 8)        # r1: chi^2 = 1.44 q against its noise gate
+    not_r0 = mask.copy()
+    not_r0[:8] = False
+    assert worst_record(pr, sig, not_r0, 0.01, m) == worst_record(pr, sig, not_r0, 0.01)   # r1, r2: noise gates
+    assert worst_record(pr, sig, mask, 0.01, m)[1] == "r1"
+    assert np.isclose(worst_record(pr, sig, mask, 0.01, m)[0], 1.44)
+
+
 def test_shared_transducer_gain_couples_the_records_of_one_chain(monkeypatch):
     """features.shared_covariance / Problem.set_noise: one load cell records
     every damper-level test, so a gain error common to the records is noise

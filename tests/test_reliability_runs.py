@@ -419,11 +419,11 @@ def test_sweep_summary_leaves_out_an_earlier_runs_failures(tmp_path):
     d = tmp_path / "s"
     for name in ("old_typo", "rerun_bad"):
         (d / name).mkdir(parents=True)
-        (d / name / FAILED).write_text(json.dumps({"error": f"{name} failed", "attempt": f"{name}-1"}))
+        (d / name / FAILED).write_text(json.dumps({"error": f"{name} failed", "attempt": 1}))
     before = failure_attempts(d)                                        # the multirun starts
-    (d / "rerun_bad" / FAILED).write_text(json.dumps({"error": "failed again", "attempt": "rerun_bad-2"}))
+    (d / "rerun_bad" / FAILED).write_text(json.dumps({"error": "failed again", "attempt": 2}))
     (d / "new_bad").mkdir()
-    (d / "new_bad" / FAILED).write_text(json.dumps({"error": "new", "attempt": "new_bad-1"}))
+    (d / "new_bad" / FAILED).write_text(json.dumps({"error": "new", "attempt": 1}))
     tab = summarize(d, before=before)
     assert list(tab.variant) == ["new_bad", "rerun_bad"] and (tab.status != "ok").sum() == 2   # this run's failures
     md = (d / "summary.md").read_text()
@@ -443,3 +443,11 @@ def test_sweep_rerun_with_the_fix_does_not_count_the_earlier_failure(tmp_path):
     _sweep(ROOT, f"results_dir={tmp_path}", "variant=baseline_0.9", "fail_on=baseline_0.9")   # this run's failure
     rows = [ln for ln in (tmp_path / "t" / "summary.md").read_text().splitlines() if "failed:" in ln]
     assert len(rows) == 1 and "baseline_0.9" in rows[0]                 # counted; the old typo still is not
+    rec = tmp_path / "t" / "baseline_0.9" / "_FAILED.json"
+    first = json.loads(rec.read_text())
+    _sweep(ROOT, f"results_dir={tmp_path}", "variant=baseline_0.9", "fail_on=baseline_0.9")   # fails again
+    again = json.loads(rec.read_text())
+    assert (first["attempt"], again["attempt"]) == (1, 2)                # a count, not a random id or a clock
+    assert {**again, "attempt": 1} == first                              # the same failure, the same record
+    rows = [ln for ln in (tmp_path / "t" / "summary.md").read_text().splitlines() if "failed:" in ln]
+    assert len(rows) == 1 and "baseline_0.9" in rows[0]                 # retried and failed again: counted

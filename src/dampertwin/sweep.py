@@ -24,7 +24,6 @@ import os
 import re
 import sys
 import traceback
-import uuid
 from pathlib import Path
 
 import numpy as np
@@ -187,6 +186,7 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
         log.info("%s: complete, skipped", name)
         return out
     out.mkdir(parents=True, exist_ok=True)
+    attempt = _attempt(out / FAILED) + 1  # this run's failure record, if it fails: one past the earlier one's
     (out / FAILED).unlink(missing_ok=True)
     try:
         if cfg.get("fail_on") and cfg.fail_on == name:  # deliberate failure, for tests of the sweep machinery
@@ -226,24 +226,31 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
         (out / COMPLETE).unlink(missing_ok=True)
         msg = one_line(e) if isinstance(e, UserError) else f"{type(e).__name__}: {one_line(e)}"
         (out / FAILED).write_text(json.dumps({"error": msg, "traceback": traceback.format_exc(), "config_hash": h,
-                                              "attempt": uuid.uuid4().hex}))
+                                              "attempt": attempt}))
         log.error("%s: FAILED: %s", name, msg)
     return out
 
 
-def failure_attempts(sweep_dir: Path) -> dict[str, str | None]:
-    """variant -> attempt id of each failure record in a sweep folder (None: a record without one). A
-    multirun notes them at its start: a variant it runs writes a new record with a new id, or none."""
+def _attempt(path: Path) -> int:
+    """The attempt number of a failure record (0: none, unreadable, or without a number)."""
+    try:
+        n = json.loads(path.read_text()).get("attempt") if path.is_file() else 0
+    except (OSError, ValueError, AttributeError):
+        return 0
+    return n if isinstance(n, int) and not isinstance(n, bool) and n > 0 else 0
+
+
+def failure_attempts(sweep_dir: Path) -> dict[str, int | None]:
+    """variant -> attempt number of each failure record in a sweep folder (None: a record without one). A
+    multirun notes them at its start: a variant it runs writes a record one attempt later, or none. The
+    number counts (no random id, no clock), so the same failures give the same bytes."""
     out = {}
     for f in sorted(sweep_dir.glob(f"*/{FAILED}")) if sweep_dir.is_dir() else []:
-        try:
-            out[f.parent.name] = json.loads(f.read_text()).get("attempt")
-        except (OSError, ValueError):
-            out[f.parent.name] = None
+        out[f.parent.name] = _attempt(f) or None
     return out
 
 
-def summarize(sweep_dir: Path, before: dict[str, str | None] | None = None) -> pd.DataFrame:
+def summarize(sweep_dir: Path, before: dict[str, int | None] | None = None) -> pd.DataFrame:
     """One row per variant with every KPI and its change vs the baseline
     (the unperturbed baseline_1.6 case); failed variants listed with their
     error. With ``before`` (:func:`failure_attempts` at the multirun's start)
@@ -258,7 +265,7 @@ def summarize(sweep_dir: Path, before: dict[str, str | None] | None = None) -> p
             rows.append({**df.iloc[0].to_dict(), "status": "ok"})
         elif (v / FAILED).is_file():
             rec = json.loads((v / FAILED).read_text())
-            if before is not None and v.name in before and rec.get("attempt") == before[v.name]:
+            if before is not None and v.name in before and (_attempt(v / FAILED) or None) == before[v.name]:
                 stale.append(v.name)
                 continue
             rows.append({"variant": v.name, "status": "failed: " + _cell(rec.get("error", "unknown error"))})

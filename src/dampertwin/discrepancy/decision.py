@@ -23,15 +23,8 @@ def mean_z2(z: np.ndarray, mask: np.ndarray) -> float:
     return chi(z, mask) / max(n, 1)
 
 
-def worst_record(problem: "Problem", z: np.ndarray, mask: np.ndarray, alpha: float) -> tuple[float, str]:
-    """Per-record chi-square test of the whitened residual: the largest ratio
-    (sum of z^2 over a record's features) / (its chi-square quantile at
-    1 - alpha / records, Bonferroni) and that record. A ratio above 1 is a
-    disagreement localised in one record (the slowest curving run, say) that
-    the mean over every feature would dilute; under the noise model the
-    chance that any agreeing record exceeds it is <= alpha."""
-    from scipy.stats import chi2 as chi2_dist
-
+def _blocks(problem: "Problem", z: np.ndarray, mask: np.ndarray) -> list:
+    """(record key, its masked features of ``z``) for every record with a feature in ``mask``."""
     blocks, k = [], 0
     for u in problem.units:
         n = len(u.labels)
@@ -39,11 +32,38 @@ def worst_record(problem: "Problem", z: np.ndarray, mask: np.ndarray, alpha: flo
         if m.any():
             blocks.append((u.key, z[k:k + n][m]))
         k += n
+    return blocks
+
+
+def record_chi2(problem: "Problem", z: np.ndarray, mask: np.ndarray) -> dict:
+    """Sum of z^2 over each record's features in ``mask`` (record key -> chi^2)."""
+    return {key: float(np.sum(v * v)) for key, v in _blocks(problem, z, mask)}
+
+
+def worst_record(problem: "Problem", z: np.ndarray, mask: np.ndarray, alpha: float,
+                 misfit: dict | None = None) -> tuple[float, str]:
+    """Per-record chi-square test of the whitened residual: the largest ratio
+    (sum of z^2 over a record's features) / (its chi-square quantile at
+    1 - alpha / records, Bonferroni) and that record. A ratio above 1 is a
+    disagreement localised in one record (the slowest curving run, say) that
+    the mean over every feature would dilute; under the noise model the
+    chance that any agreeing record exceeds it is <= alpha.
+
+    ``misfit`` (record key -> chi^2 of a residual no parameter removes, the
+    model error of that record) raises a record's gate to that chi^2 where it
+    exceeds the quantile: a signature then counts only where it is larger
+    than both the noise and the misfit already there (the model error taken
+    as extra scatter of that record). Records whose misfit stays under the
+    quantile keep it, so for them the ratio is unchanged."""
+    from scipy.stats import chi2 as chi2_dist
+
+    blocks = _blocks(problem, z, mask)
     worst, key = 0.0, ""
     q = 1.0 - alpha / max(len(blocks), 1)
     quant = {n: float(chi2_dist.ppf(q, n)) for n in {len(v) for _, v in blocks}}
     for name, v in blocks:
-        val = float(np.sum(v * v)) / quant[len(v)] if np.all(np.isfinite(v)) else math.inf
+        gate = max(quant[len(v)], (misfit or {}).get(name, 0.0))
+        val = float(np.sum(v * v)) / gate if np.all(np.isfinite(v)) else math.inf
         if val > worst:
             worst, key = val, name
     return worst, key
@@ -124,4 +144,4 @@ def _pick(gain: dict, score: dict):
 
 
 
-__all__ = ["NEAR_NOISE", "chi", "mean_z2", "worst_record", "assign_folds"]
+__all__ = ["NEAR_NOISE", "chi", "mean_z2", "worst_record", "record_chi2", "assign_folds"]

@@ -18,7 +18,7 @@ from ..calibration.ga import FitResult, ParamSpec
 from ..calibration.gauss_newton import GaussNewtonSettings
 from ..calibration.optimisers import run
 from ..design import Design, DesignError
-from .decision import worst_record
+from .decision import record_chi2, worst_record
 from .problem import Problem, RefitProblem, Row, nan_row
 
 
@@ -209,7 +209,7 @@ def sensitivity(problem: Problem, base: Design, params: list, step: float, label
 
 
 def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: np.ndarray, prior_sigma: float,
-                  alpha: float, separating: dict) -> list[dict]:
+                  alpha: float, separating: dict, misfit_z: np.ndarray | None = None) -> list[dict]:
     """What the records present can resolve: each candidate switched on at
     its typical magnitude on ``base``, its whitened signature (bench gain /
     offset allowances already in the whitening) minus what the calibration
@@ -218,13 +218,21 @@ def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: n
     record's gate quantile (``worst_record``). ratio >= 1: the typical
     magnitude alone exceeds the gate; otherwise about 1 / sqrt(ratio) x the
     typical magnitude would be needed (signature linear in the magnitude).
-    A `none` verdict says nothing about an effect with ratio << 1."""
+    A `none` verdict says nothing about an effect with ratio << 1.
+
+    ``misfit_z``: the whitened residual the calibrated design leaves (an
+    `unexplained` verdict's model error). A record's gate is then raised to
+    the chi^2 of that misfit where it exceeds the quantile (``worst_record``'s
+    ``misfit``): ``ratio`` < 1 says the typical magnitude would hide under the
+    model error of every record; ``ratio_noise`` / ``record_noise`` keep the
+    test against the noise alone."""
     if not cands:
         return []
     # a candidate that cannot be switched on gets a NaN row (_rows): ratio None below
     S = _rows(problem, lambda c: (base.with_overrides(c.overrides()),), base, cands, "resolvability")
     zb = problem.z(S_base)
     allm = problem.mask(None)
+    misfit = record_chi2(problem, misfit_z, allm) if misfit_z is not None else None
     n = J.shape[1]
     A = np.vstack([J, np.eye(n) / prior_sigma]) if n else None
     out = []
@@ -232,17 +240,21 @@ def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: n
         zs = problem.z(row)
         entry = {"effect": c.name, "ratio": None, "record": "", "resolvable": None,
                  "min_factor": None, "separating_test": separating.get(c.name, separating.get("default", ""))}
+        if misfit is not None:
+            entry.update(ratio_noise=None, record_noise="")
         if np.all(np.isfinite(zs)) and np.all(np.isfinite(zb)):
             s = zb - zs   # the residual the effect would leave if the model lacked it
             if n:
                 a = np.linalg.lstsq(A, np.concatenate([s, np.zeros(n)]), rcond=None)[0]
                 s = s - J @ a
-            ratio, rec = worst_record(problem, s, allm, alpha)
+            ratio, rec = worst_record(problem, s, allm, alpha, misfit)
             entry.update(ratio=round(ratio, 4), record=rec, resolvable=bool(ratio >= 1.0),
                          min_factor=round(1.0 / math.sqrt(ratio), 3) if ratio > 0 else None)
+            if misfit is not None:
+                r0, rec0 = worst_record(problem, s, allm, alpha)
+                entry.update(ratio_noise=round(r0, 4), record_noise=rec0)
         out.append(entry)
     return out
-
 
 
 __all__ = ["Candidate", "calibration_params", "catalogue", "select_params", "with_priors", "restarted", "refit",

@@ -177,20 +177,31 @@ def thesis_tables(problem, signals) -> str:
     return "\n".join(parts) if parts else "(no mono-sine or random record used)\n"
 
 
-def _resolvability_section(rs) -> list:
-    """`none` verdicts: which library effects these records could have seen at their typical magnitude."""
+def _resolvability_section(rs, misfit: bool = False) -> list:
+    """`none` / `unexplained` verdicts: which library effects these records could have seen at their
+    typical magnitude (``misfit``: each record's gate raised to the calibrated design's misfit there)."""
     if not rs:
         return []
-    return [
-        "## What these records can resolve", "",
-        "Each candidate switched on at its typical magnitude: the chi^2 of its signature in its most affected "
-        "record, after what the calibration pool and the bench allowances absorb, over that record's gate "
-        "quantile. Below 1 the typical magnitude would not have been seen: `none` says nothing about that "
-        "effect; about `min factor` x typical would be needed, or the test named.", "",
-        _md_table([{"effect": r["effect"], "ratio": r["ratio"], "record": r["record"],
-                    "resolvable": r["resolvable"], "min factor": r["min_factor"],
-                    "separating test": r["separating_test"]} for r in rs]),
-    ]
+    rows = [{"effect": r["effect"], "ratio": r["ratio"], "record": r["record"], "resolvable": r["resolvable"],
+             "min factor": r["min_factor"]} for r in rs]
+    if misfit:
+        for row, r in zip(rows, rs):
+            row.update({"ratio, noise alone": r["ratio_noise"], "record, noise alone": r["record_noise"]})
+    for row, r in zip(rows, rs):
+        row["separating test"] = r["separating_test"]
+    text = ("Each candidate switched on at its typical magnitude: the chi^2 of its signature in its most affected "
+            "record, after what the calibration pool and the bench allowances absorb, over that record's gate "
+            "quantile. Below 1 the typical magnitude would not have been seen: `none` says nothing about that "
+            "effect; about `min factor` x typical would be needed, or the test named.")
+    if misfit:
+        text = ("Each candidate switched on at its typical magnitude on the calibrated design: the chi^2 of its "
+                "signature in its most affected record, after what the calibration pool and the bench allowances "
+                "absorb, over that record's gate, raised to the chi^2 of the misfit the calibrated design leaves "
+                "in that record where the misfit exceeds the gate quantile (the model error taken as that "
+                "record's extra scatter). Below 1 the typical magnitude would hide under the model error of "
+                "every record: `unexplained` says nothing about that effect; about `min factor` x typical would "
+                "be needed. `ratio, noise alone` is the same test against the noise only.")
+    return ["## What these records can resolve", "", text, "", _md_table(rows)]
 
 
 def write_report(out, design, problem, res, doc, args) -> None:
@@ -225,7 +236,7 @@ def write_report(out, design, problem, res, doc, args) -> None:
                     "held-out gap after": c["heldout_gap_after"],
                     "parameters": ", ".join(f"{k}={v:.3g}" for k, v in c["parameters"].items())}
                    for c in doc["candidates"]]),
-        *_resolvability_section(res.get("resolvability")),
+        *_resolvability_section(res.get("resolvability"), bool(res.get("resolvability_misfit"))),
         "## Decision log", "",
         *[f"- {x}" for x in res["log"]], "",
         "## Thesis tables before / after", "",

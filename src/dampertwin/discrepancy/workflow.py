@@ -87,18 +87,24 @@ class _Run:
             self.Jc[:, i] = np.where(np.isfinite(col), col, 0.0)
         return mz0, wz0
 
-    def resolved(self, base: Design, S_base: Row) -> None:
-        """Before a `none`: which candidates these records could have seen (report)."""
+    def resolved(self, base: Design, S_base: Row, misfit_z: np.ndarray | None = None) -> None:
+        """Before a `none`, and after an `unexplained` (``misfit_z``: the calibrated
+        design's residual, its model error raising each record's gate): which
+        candidates these records could have seen (report, OUT/resolvability.json)."""
         dcfg = self.dcfg
         if not dcfg.get("resolvability", True) or self.alpha <= 0:
             return
         rs = resolvability(self.problem, base, S_base, catalogue(self.design, self.cfg), self.Jc,
-                           float(dcfg.get("prior_sigma", 0.1)), self.alpha, self.cfg.get("separating_tests", {}) or {})
+                           float(dcfg.get("prior_sigma", 0.1)), self.alpha, self.cfg.get("separating_tests", {}) or {},
+                           misfit_z)
         self.res["resolvability"] = rs
+        self.res["resolvability_misfit"] = misfit_z is not None
         weak = [r for r in rs if r["resolvable"] is False]
         if weak:
             self.log.append("not resolvable on these records at the typical magnitude (signature beyond the "
-                            "calibration pool and bench allowances / the record gate): "
+                            "calibration pool and bench allowances / the record gate"
+                            + (", raised to the misfit the calibrated design leaves there" if misfit_z is not None
+                               else "") + "): "
                             + ", ".join(f"{r['effect']} {r['ratio']:.2f} ("
                                         + (f"needs ~{r['min_factor']:.1f}x" if r["min_factor"] is not None
                                            else "no signature at all on these records")
@@ -543,7 +549,10 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     r.recalibrate()
     r.try_pairs()
     r.held_out_stats()
-    return r.decide()
+    res = r.decide()
+    if res["verdict"] == "unexplained":  # could the records have shown a library effect through this misfit?
+        r.resolved(r.cal.design, r.cal.simulated, r.z_cal)
+    return res
 
 
 def verdict_document(res: dict) -> dict:
