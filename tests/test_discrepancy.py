@@ -226,7 +226,7 @@ def test_out_of_library_artefact_is_unexplained(control, tmp_path):
     rs = json.loads((tmp_path / "out" / "resolvability.json").read_text())
     assert rs and all(r["ratio"] <= r["ratio_noise"] + 1e-9 for r in rs if r["ratio"] is not None), rs
     assert any(r["ratio"] < 0.9 * r["ratio_noise"] for r in rs if r["ratio"] is not None), rs
-    assert "raised to the chi^2 of the misfit" in (tmp_path / "out" / "report.md").read_text()
+    assert "times the record's Birge ratio" in (tmp_path / "out" / "report.md").read_text()
 
 
 def _exit(argv, capsys):

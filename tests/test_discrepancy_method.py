@@ -200,14 +200,16 @@ def test_record_gate_is_a_bonferroni_chi_square_test():
 
 def test_record_gate_raised_to_a_records_misfit():
     """worst_record's ``misfit`` (an `unexplained` verdict's model error per record): a record whose
-    misfit chi^2 exceeds its quantile gets that chi^2 as its gate, so a signature there counts only
-    in proportion to it; a record whose misfit stays under the quantile keeps the noise gate, and
-    without a misfit the test is the noise-only one."""
+    misfit has a Birge ratio B = chi^2 / features > 1 gets B x its quantile as its gate, so a
+    signature there counts only in proportion; a record with B <= 1 keeps the noise gate. And the
+    resolvability check takes the candidate's own share out of the misfit first (refits.misfit_beside):
+    an effect present in the records does not hide under its own residual, however large."""
     from types import SimpleNamespace
 
     from scipy.stats import chi2 as chi2_dist
 
     from dampertwin.discrepancy.decision import record_chi2, worst_record
+    from dampertwin.discrepancy.refits import misfit_beside
 
     units = [SimpleNamespace(labels=[None] * 8, key=f"r{i}") for i in range(3)]
     pr = SimpleNamespace(units=units)
@@ -218,18 +220,27 @@ def test_record_gate_raised_to_a_records_misfit():
     noise = worst_record(pr, sig, mask, 0.01)
     assert noise[1] == "r0" and np.isclose(noise[0], 2.25)
     misfit = np.zeros(24)
-    misfit[:8] = 3.0 * np.sqrt(q / 8)       # r0's model error: chi^2 = 9 q
-    misfit[8:16] = 0.5 * np.sqrt(q / 8)     # r1's: under its quantile
+    misfit[:8] = 3.0                        # r0's model error: B = 9
+    misfit[8:16] = 0.9                      # r1's: B = 0.81, under 1
     m = record_chi2(pr, misfit, mask)
-    assert np.isclose(m["r0"], 9 * q) and np.isclose(m["r1"], 0.25 * q) and m["r2"] == 0.0
+    assert np.isclose(m["r0"], 72.0) and np.isclose(m["r1"], 8 * 0.81) and m["r2"] == 0.0
     raised = worst_record(pr, sig, mask, 0.01, m)
-    assert raised[1] == "r0" and np.isclose(raised[0], 0.25)   # 2.25 q over 9 q: hidden under the model error
+    assert raised[1] == "r0" and np.isclose(raised[0], 2.25 / 9)   # hidden under the model error
     sig[8:16] = 1.2 * np.sqrt(q / 8)        # r1: chi^2 = 1.44 q against its noise gate
     not_r0 = mask.copy()
     not_r0[:8] = False
     assert worst_record(pr, sig, not_r0, 0.01, m) == worst_record(pr, sig, not_r0, 0.01)   # r1, r2: noise gates
-    assert worst_record(pr, sig, mask, 0.01, m)[1] == "r1"
-    assert np.isclose(worst_record(pr, sig, mask, 0.01, m)[0], 1.44)
+    assert worst_record(pr, sig, mask, 0.01, m)[1] == "r1" and np.isclose(worst_record(pr, sig, mask, 0.01, m)[0], 1.44)
+    # the effect itself in the records, at 1.5x or 4x typical: its own share is not model error
+    for k in (1.5, 4.0):
+        own = misfit_beside(pr, sig, k * sig, mask)
+        assert max(own.values()) < 1e-20 and worst_record(pr, sig, mask, 0.01, own) == worst_record(pr, sig, mask, 0.01)
+    e = np.zeros(24)
+    e[16:] = 3.0                            # model error in r2 alone, beside the effect
+    beside = misfit_beside(pr, sig, 4.0 * sig + e, mask)
+    assert np.isclose(beside["r2"], 72.0) and beside["r0"] < 1e-20
+    # a misfit opposite to the effect is not taken as a negative magnitude of it
+    assert np.isclose(misfit_beside(pr, sig, -sig, mask)["r0"], np.sum(sig[:8] ** 2))
 
 
 def test_shared_transducer_gain_couples_the_records_of_one_chain(monkeypatch):

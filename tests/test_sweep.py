@@ -66,6 +66,10 @@ def test_rerun_skips_completed_and_retries_failed(two_variants):
     assert (d / "baseline_1.6" / "monosine.parquet").stat().st_mtime_ns == before
     assert "baseline_1.6: complete, skipped" in r.stdout + r.stderr
     assert (d / "lower_base_intake" / COMPLETE).is_file()  # retried, now without the forced failure
+    # the attempt count goes on past a success: a later failure of this variant is never taken for the
+    # earlier run's record (sweep.summarize's `before`)
+    assert json.loads((d / "lower_base_intake" / COMPLETE).read_text())["attempt"] == 2
+    assert json.loads((d / "baseline_1.6" / COMPLETE).read_text())["attempt"] == 1
     tab = pd.read_parquet(d / "summary.parquet")
     assert set(tab.status) == {"ok"}
     row = tab.set_index("variant").loc["lower_base_intake"]

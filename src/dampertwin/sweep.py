@@ -186,7 +186,8 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
         log.info("%s: complete, skipped", name)
         return out
     out.mkdir(parents=True, exist_ok=True)
-    attempt = _attempt(out / FAILED) + 1  # this run's failure record, if it fails: one past the earlier one's
+    # this run's attempt: one past the earlier run's, failed or complete (a count that a success does not reset)
+    attempt = max(_attempt(out / FAILED), _attempt(out / COMPLETE)) + 1
     (out / FAILED).unlink(missing_ok=True)
     try:
         if cfg.get("fail_on") and cfg.fail_on == name:  # deliberate failure, for tests of the sweep machinery
@@ -220,7 +221,7 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
                 lv = kpi.psd_levels(f)
                 row["PSD 200 Hz [dB]"], row["PSD 300 Hz [dB]"] = lv["200 Hz [dB]"], lv["300 Hz [dB]"]
         write_frame(out / "kpis.parquet", pd.DataFrame([row]), meta)
-        (out / COMPLETE).write_text(json.dumps({"config_hash": h, "design_hash": d.hash()}))
+        (out / COMPLETE).write_text(json.dumps({"config_hash": h, "design_hash": d.hash(), "attempt": attempt}))
         log.info("%s: done", name)
     except Exception as e:  # a failed variant is reported and does not stop the sweep
         (out / COMPLETE).unlink(missing_ok=True)
@@ -232,7 +233,7 @@ def run_variant(cfg: DictConfig, root: Path | None = None) -> Path:
 
 
 def _attempt(path: Path) -> int:
-    """The attempt number of a failure record (0: none, unreadable, or without a number)."""
+    """The attempt number of a failure or completion record (0: none, unreadable, or without a number)."""
     try:
         n = json.loads(path.read_text()).get("attempt") if path.is_file() else 0
     except (OSError, ValueError, AttributeError):
@@ -242,8 +243,9 @@ def _attempt(path: Path) -> int:
 
 def failure_attempts(sweep_dir: Path) -> dict[str, int | None]:
     """variant -> attempt number of each failure record in a sweep folder (None: a record without one). A
-    multirun notes them at its start: a variant it runs writes a record one attempt later, or none. The
-    number counts (no random id, no clock), so the same failures give the same bytes."""
+    multirun notes them at its start: a variant it runs writes a record one attempt later (failed or
+    complete: a success in between does not restart the count). The number counts (no random id, no
+    clock), so the same failures give the same bytes."""
     out = {}
     for f in sorted(sweep_dir.glob(f"*/{FAILED}")) if sweep_dir.is_dir() else []:
         out[f.parent.name] = _attempt(f) or None

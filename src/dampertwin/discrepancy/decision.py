@@ -50,11 +50,12 @@ def worst_record(problem: "Problem", z: np.ndarray, mask: np.ndarray, alpha: flo
     chance that any agreeing record exceeds it is <= alpha.
 
     ``misfit`` (record key -> chi^2 of a residual no parameter removes, the
-    model error of that record) raises a record's gate to that chi^2 where it
-    exceeds the quantile: a signature then counts only where it is larger
-    than both the noise and the misfit already there (the model error taken
-    as extra scatter of that record). Records whose misfit stays under the
-    quantile keep it, so for them the ratio is unchanged."""
+    model error of that record): the record's noise is inflated by its Birge
+    ratio B = misfit / features where B > 1 (the Particle Data Group's scale
+    factor S = sqrt(B), applied when S > 1), so its gate becomes B x its
+    quantile: a signature counts only where it stands out of the noise and
+    of the misfit already there. Records with B <= 1 keep their quantile.
+    """
     from scipy.stats import chi2 as chi2_dist
 
     blocks = _blocks(problem, z, mask)
@@ -62,7 +63,7 @@ def worst_record(problem: "Problem", z: np.ndarray, mask: np.ndarray, alpha: flo
     q = 1.0 - alpha / max(len(blocks), 1)
     quant = {n: float(chi2_dist.ppf(q, n)) for n in {len(v) for _, v in blocks}}
     for name, v in blocks:
-        gate = max(quant[len(v)], (misfit or {}).get(name, 0.0))
+        gate = quant[len(v)] * max(1.0, (misfit or {}).get(name, 0.0) / len(v))
         val = float(np.sum(v * v)) / gate if np.all(np.isfinite(v)) else math.inf
         if val > worst:
             worst, key = val, name

@@ -208,6 +208,15 @@ def sensitivity(problem: Problem, base: Design, params: list, step: float, label
     return [r if o else nan_row(r) for r, o in zip(S, ok)], np.array(hs)
 
 
+def misfit_beside(problem: Problem, s: np.ndarray, misfit_z: np.ndarray, mask: np.ndarray) -> dict:
+    """Per-record chi^2 of the misfit ``misfit_z`` less its part along the signature ``s`` (a >= 0
+    times ``s``, least squares over ``mask``): the model error beside an effect that may itself be
+    in the records (an effect's magnitude is not negative)."""
+    ss = float(np.sum(s[mask] ** 2))
+    a = max(0.0, float(np.dot(misfit_z[mask], s[mask])) / ss) if ss > 0 else 0.0
+    return record_chi2(problem, misfit_z - a * s, mask)
+
+
 def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: np.ndarray, prior_sigma: float,
                   alpha: float, separating: dict, misfit_z: np.ndarray | None = None) -> list[dict]:
     """What the records present can resolve: each candidate switched on at
@@ -221,18 +230,20 @@ def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: n
     A `none` verdict says nothing about an effect with ratio << 1.
 
     ``misfit_z``: the whitened residual the calibrated design leaves (an
-    `unexplained` verdict's model error). A record's gate is then raised to
-    the chi^2 of that misfit where it exceeds the quantile (``worst_record``'s
-    ``misfit``): ``ratio`` < 1 says the typical magnitude would hide under the
-    model error of every record; ``ratio_noise`` / ``record_noise`` keep the
-    test against the noise alone."""
+    `unexplained` verdict's model error). For each candidate, the part of it
+    along the candidate's own signature (a >= 0 times it, least squares over
+    every record: the effect itself, if present) is taken out first, so an
+    effect in the records does not hide under its own residual; what remains
+    inflates each record's gate by its Birge ratio (``worst_record``'s
+    ``misfit``): ``ratio`` < 1 says the typical magnitude would hide under
+    the model error of every record; ``ratio_noise`` / ``record_noise`` keep
+    the test against the noise alone."""
     if not cands:
         return []
     # a candidate that cannot be switched on gets a NaN row (_rows): ratio None below
     S = _rows(problem, lambda c: (base.with_overrides(c.overrides()),), base, cands, "resolvability")
     zb = problem.z(S_base)
     allm = problem.mask(None)
-    misfit = record_chi2(problem, misfit_z, allm) if misfit_z is not None else None
     n = J.shape[1]
     A = np.vstack([J, np.eye(n) / prior_sigma]) if n else None
     out = []
@@ -240,17 +251,18 @@ def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: n
         zs = problem.z(row)
         entry = {"effect": c.name, "ratio": None, "record": "", "resolvable": None,
                  "min_factor": None, "separating_test": separating.get(c.name, separating.get("default", ""))}
-        if misfit is not None:
+        if misfit_z is not None:
             entry.update(ratio_noise=None, record_noise="")
         if np.all(np.isfinite(zs)) and np.all(np.isfinite(zb)):
             s = zb - zs   # the residual the effect would leave if the model lacked it
             if n:
                 a = np.linalg.lstsq(A, np.concatenate([s, np.zeros(n)]), rcond=None)[0]
                 s = s - J @ a
+            misfit = misfit_beside(problem, s, misfit_z, allm) if misfit_z is not None else None
             ratio, rec = worst_record(problem, s, allm, alpha, misfit)
             entry.update(ratio=round(ratio, 4), record=rec, resolvable=bool(ratio >= 1.0),
                          min_factor=round(1.0 / math.sqrt(ratio), 3) if ratio > 0 else None)
-            if misfit is not None:
+            if misfit_z is not None:
                 r0, rec0 = worst_record(problem, s, allm, alpha)
                 entry.update(ratio_noise=round(r0, 4), record_noise=rec0)
         out.append(entry)
@@ -258,4 +270,4 @@ def resolvability(problem: Problem, base: Design, S_base: Row, cands: list, J: n
 
 
 __all__ = ["Candidate", "calibration_params", "catalogue", "select_params", "with_priors", "restarted", "refit",
-           "at_design", "sensitivity", "resolvability"]
+           "at_design", "sensitivity", "misfit_beside", "resolvability"]

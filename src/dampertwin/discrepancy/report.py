@@ -196,11 +196,12 @@ def _resolvability_section(rs, misfit: bool = False) -> list:
     if misfit:
         text = ("Each candidate switched on at its typical magnitude on the calibrated design: the chi^2 of its "
                 "signature in its most affected record, after what the calibration pool and the bench allowances "
-                "absorb, over that record's gate, raised to the chi^2 of the misfit the calibrated design leaves "
-                "in that record where the misfit exceeds the gate quantile (the model error taken as that "
-                "record's extra scatter). Below 1 the typical magnitude would hide under the model error of "
-                "every record: `unexplained` says nothing about that effect; about `min factor` x typical would "
-                "be needed. `ratio, noise alone` is the same test against the noise only.")
+                "absorb, over that record's gate quantile times the record's Birge ratio (the chi^2 per feature "
+                "of the misfit the calibrated design leaves there, less the candidate's own share of it, where "
+                "above 1: the model error taken as extra scatter of that record). Below 1 the typical magnitude "
+                "would hide under the model error of every record: `unexplained` says nothing about that "
+                "effect; about `min factor` x typical would be needed. `ratio, noise alone` is the same test "
+                "against the noise only.")
     return ["## What these records can resolve", "", text, "", _md_table(rows)]
 
 

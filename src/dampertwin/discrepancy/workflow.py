@@ -88,8 +88,8 @@ class _Run:
         return mz0, wz0
 
     def resolved(self, base: Design, S_base: Row, misfit_z: np.ndarray | None = None) -> None:
-        """Before a `none`, and after an `unexplained` (``misfit_z``: the calibrated
-        design's residual, its model error raising each record's gate): which
+        """Before a `none`, and after an `unexplained` of the decision (``misfit_z``: the
+        calibrated design's residual, its model error inflating each record's gate): which
         candidates these records could have seen (report, OUT/resolvability.json)."""
         dcfg = self.dcfg
         if not dcfg.get("resolvability", True) or self.alpha <= 0:
@@ -103,7 +103,7 @@ class _Run:
         if weak:
             self.log.append("not resolvable on these records at the typical magnitude (signature beyond the "
                             "calibration pool and bench allowances / the record gate"
-                            + (", raised to the misfit the calibrated design leaves there" if misfit_z is not None
+                            + (", inflated by the misfit the calibrated design leaves there" if misfit_z is not None
                                else "") + "): "
                             + ", ".join(f"{r['effect']} {r['ratio']:.2f} ("
                                         + (f"needs ~{r['min_factor']:.1f}x" if r["min_factor"] is not None
@@ -551,7 +551,10 @@ def run(design: Design, problem: Problem, cfg: dict, profile: str, seed: int) ->
     r.held_out_stats()
     res = r.decide()
     if res["verdict"] == "unexplained":  # could the records have shown a library effect through this misfit?
-        r.resolved(r.cal.design, r.cal.simulated, r.z_cal)
+        if np.all(np.isfinite(r.z_cal)):
+            r.resolved(r.cal.design, r.cal.simulated, r.z_cal)
+        else:
+            r.log.append("resolvability not checked: the calibrated design's residual is not finite everywhere")
     return res
 
 
