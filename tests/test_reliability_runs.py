@@ -451,3 +451,9 @@ def test_sweep_rerun_with_the_fix_does_not_count_the_earlier_failure(tmp_path):
     assert {**again, "attempt": 1} == first                              # the same failure, the same record
     rows = [ln for ln in (tmp_path / "t" / "summary.md").read_text().splitlines() if "failed:" in ln]
     assert len(rows) == 1 and "baseline_0.9" in rows[0]                 # retried and failed again: counted
+    _sweep(ROOT, f"results_dir={tmp_path}", "variant=baseline_0.9")     # fixed: complete, attempt 3
+    assert json.loads((rec.parent / "_COMPLETE.json").read_text())["attempt"] == 3
+    _sweep(ROOT, f"results_dir={tmp_path}", "variant=baseline_0.9", "seed=7", "fail_on=baseline_0.9")   # rerun, fails
+    assert json.loads(rec.read_text())["attempt"] == 4                   # the count did not restart at 1...
+    rows = [ln for ln in (tmp_path / "t" / "summary.md").read_text().splitlines() if "failed:" in ln]
+    assert len(rows) == 1 and "baseline_0.9" in rows[0]                 # ...so this failure is counted
