@@ -199,3 +199,26 @@ def test_lead_figures_tell_the_ranking_from_the_gate(bench):
     assert got["single_above_floor"] == 2
     assert got["single_lead_closed_of_excess_median"] == round(((1.2 / 1.0) + (1.0 / 2.0)) / 2, 3)
     assert set(bench.lead_figures(rows[2:], "truth")) == {"single_lead_true_rate"}
+
+
+def test_resolvable_rates_against_the_model_error_and_the_noise(bench):
+    """Issue 34's rate among the cases the resolvability check calls resolvable, by both checks: a single
+    case left `unexplained` whose families hide under the model error (resolvable against the noise alone)
+    leaves the first rate's denominator, stays in the noise-only one, and is counted on its own."""
+    from types import SimpleNamespace
+
+    from discrepancy_score import score
+
+    base = {"cell": "single", "truth": ["band_eccentricity"], "effects": [], "group": [], "start_on": [],
+            "closed": 0.0, "gap_before": 5.0, "lead": "piston_leakage", "lead_gap_after": 4.5, "visibility": None,
+            "truth_unresolvable": [], "truth_unresolvable_noise": []}
+    rows = [{**base, "verdict": "unexplained", "truth_unresolvable": ["band_eccentricity"]},   # under the error
+            {**base, "verdict": "named", "effects": ["piston_leakage"], "closed": 0.8},
+            {**base, "verdict": "unexplained"},                                                 # a miss
+            {**base, "cell": "control", "truth": [], "verdict": "unexplained", "gap_before": 4.0}]
+    args = SimpleNamespace(lab="truth", seed=1, scale=1.0, magnitudes=[1.0], start_set={})
+    got = score(rows, args, ["piston_leakage"])
+    assert got["single_named_rate"] == 1 / 3
+    assert got["single_named_rate_resolvable"] == 1 / 2 and got["single_named_rate_resolvable_noise"] == 1 / 3
+    assert got["single_unexplained_under_model_error"] == 1 and got["control_false_named_rate"] == 0.0
+    assert bench._noise_ratio({"ratio": 0.4, "ratio_noise": 2.0}) == 2.0 and bench._noise_ratio({"ratio": 0.4}) == 0.4
