@@ -243,6 +243,42 @@ def test_record_gate_raised_to_a_records_misfit():
     assert np.isclose(misfit_beside(pr, sig, -sig, mask)["r0"], np.sum(sig[:8] ** 2))
 
 
+def test_closed_fraction_counts_the_records_the_effect_reaches():
+    """decision.closed_where_reached (decision.closed_on: reached): the fraction of the excess chi^2
+    a fit closes, on the held-out records its fitted effect's signature (effect off minus on) moves
+    past the record gate. Model error in records the effect cannot move leaves the fraction
+    unchanged (on the whole held-out gap it dilutes it); a record the effect moves by less than
+    its gate is not counted; an effect that moves no record closes nothing."""
+    from types import SimpleNamespace
+
+    from scipy.stats import chi2 as chi2_dist
+
+    from dampertwin.discrepancy.decision import closed_where_reached
+
+    units = [SimpleNamespace(labels=[None] * 8, key=f"r{i}") for i in range(3)]
+    pr = SimpleNamespace(units=units)
+    mask = np.ones(24, bool)
+    q = float(chi2_dist.ppf(1 - 0.01 / 3, 8))
+    eff = np.zeros(24)
+    eff[:8] = 2.0 * np.sqrt(q / 8)           # the effect in r0: chi^2 = 4 q, past r0's gate
+    z_fit = np.full(24, 1.0)                 # the fit leaves noise-level residuals (z^2 = 1) ...
+    z_fit[:8] += 0.25 * eff[:8]              # ... and a quarter of the effect in r0
+    z_ref = np.full(24, 1.0) + eff           # the reference: the whole effect in r0
+    z_off = z_fit + eff * 0.75               # the fit's effect switched off: its fitted signature back
+    frac, rec = closed_where_reached(pr, z_ref, z_fit, z_off, mask, 0.01)
+    ex = lambda z: float(np.sum(z[:8] ** 2)) - 8   # noqa: E731
+    assert rec == ["r0"] and np.isclose(frac, (ex(z_ref) - ex(z_fit)) / ex(z_ref)) and 0.5 < frac < 1.0
+    z_me = np.zeros(24)
+    z_me[8:16] = 4.0                         # model error in r1, which the effect does not move
+    frac_me, rec_me = closed_where_reached(pr, z_ref + z_me, z_fit + z_me, z_off + z_me, mask, 0.01)
+    assert rec_me == ["r0"] and np.isclose(frac_me, frac)
+    whole = lambda a, b: (np.sum(a ** 2) - np.sum(b ** 2)) / (np.sum(a ** 2) - 24)   # noqa: E731
+    assert whole(z_ref + z_me, z_fit + z_me) < 0.5 * frac       # the whole-gap fraction it replaces
+    small = z_fit + eff * 0.4                # a signature under the gate (0.16 x 4 q = 0.64 q): not reached
+    assert closed_where_reached(pr, z_ref, z_fit, small, mask, 0.01) == (0.0, [])
+    assert closed_where_reached(pr, z_ref, z_fit, z_fit, mask, 0.01) == (0.0, [])   # an effect that moves nothing
+
+
 def test_shared_transducer_gain_couples_the_records_of_one_chain(monkeypatch):
     """features.shared_covariance / Problem.set_noise: one load cell records
     every damper-level test, so a gain error common to the records is noise

@@ -304,7 +304,7 @@ def _run_and_write(d, problem, cfg, profile, seed, notes, design, measured, out)
     try:
         _dump_design(res["design"], tmp)
         (tmp / "verdict.json").write_text(json.dumps(json_safe(doc), indent=2, allow_nan=False) + "\n")
-        # `none` / `unexplained`: what these records could have seen ([] when an effect is named)
+        # `none` / `unexplained`: what these records could have seen ([] when the check did not run)
         (tmp / "resolvability.json").write_text(json.dumps(json_safe(res.get("resolvability") or []), indent=2,
                                                            allow_nan=False) + "\n")
         write_report(tmp, d, problem, res, doc, {"design": design, "measured": measured, "profile": profile,

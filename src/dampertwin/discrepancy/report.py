@@ -179,7 +179,8 @@ def thesis_tables(problem, signals) -> str:
 
 def _resolvability_section(rs, misfit: bool = False) -> list:
     """`none` / `unexplained` verdicts: which library effects these records could have seen at their
-    typical magnitude (``misfit``: each record's gate raised to the calibrated design's misfit there)."""
+    typical magnitude (``misfit``: each record's gate quantile times the Birge ratio of the
+    calibrated design's misfit there, where above 1)."""
     if not rs:
         return []
     rows = [{"effect": r["effect"], "ratio": r["ratio"], "record": r["record"], "resolvable": r["resolvable"],

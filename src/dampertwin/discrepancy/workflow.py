@@ -22,7 +22,8 @@ import numpy as np
 
 from ..calibration.gauss_newton import GaussNewtonSettings
 from ..design import Design, DesignError
-from .decision import NEAR_NOISE, _gap, _pair_eligible, _pick, _where, assign_folds, chi, mean_z2, worst_record
+from .decision import (NEAR_NOISE, _gap, _pair_eligible, _pick, _where, assign_folds, chi, closed_where_reached,
+                       mean_z2, worst_record)
 from .problem import Problem, Row, nan_row, record_pool, simulate_unit
 from .refits import (Candidate, at_design, calibration_params, catalogue, refit, resolvability, restarted,
                      select_params, sensitivity, with_priors)
@@ -413,15 +414,23 @@ class _Run:
                                  for c in top], "effects off at the fits")
         off_of = {c.name: row for c, row in zip(top, offs)}
         stats = {}
+        reached_gate = self.dcfg.get("closed_on", "heldout") == "reached"
+        z_ref = problem.z(ref.simulated)
         for c in top:
             zf = problem.z(fits[c.name].simulated)
             k = max(len(c.params), len(c.effects))
             pen = k * math.log(n_eff)
             ch_ = chi(zf, held)
-            chi_off = chi(problem.z(off_of[c.name]), held)
+            z_off = problem.z(off_of[c.name])
+            chi_off = chi(z_off, held)
             closed = (chi_cal_h - ch_) / max(chi_cal_h - nh, 1e-9)
             stats[c.name] = {"gain": min(chi_cal_h, chi_off) - ch_ - pen, "abs_score": ch_ + pen, "closed": closed,
                              "penalty": pen, "k": k, "cand": c, "own": chi_off - ch_}
+            if reached_gate:  # the gate's fraction: of the excess in the records the fitted effect reaches, or
+                # of the whole gap when larger (an effect spread thinly moves no record past its gate alone)
+                part, reached = closed_where_reached(problem, z_ref, zf, z_off, held, self.alpha)
+                stats[c.name].update(closed=max(closed, part), closed_whole=closed, closed_reached=part,
+                                     reached=reached)
         # a pair is eligible when its partner passes the nested test (a) and the relevance test (c) and the
         # pair beats each of its effects alone (b, absolute held-out chi^2 + penalty); like any candidate it
         # must then gain on held-out data over its own calibration and close half the gap. Neither effect
@@ -446,6 +455,9 @@ class _Run:
                 f"({st['k']} parameter(s) x ln {n_eff} cycles; the effect's own held-out chi2 drop at the fitted "
                 f"calibration values {st['own']:.1f}), "
                 + (f"closes {100 * min(st['closed'], 1.0):.0f} % of the held-out gap left by the {what}"
+                   + (f" (of the whole: {100 * min(st['closed_whole'], 1.0):.0f} %; in the "
+                      f"{len(st['reached'])} held-out record(s) its fitted effect reaches: "
+                      f"{100 * min(st['closed_reached'], 1.0):.0f} %)" if "reached" in st else "")
                    if chi_cal_h > NEAR_NOISE * nh else
                    f"{'lowers' if st['closed'] > 0 else 'raises'} the held-out chi2 (the {what} left it at or near "
                    f"noise level: {chi_cal_h:.0f} for {nh} features; a record's gate disagreed)")
@@ -497,8 +509,10 @@ class _Run:
         viable = [n for n in self.names if stats[n]["gain"] > 0 and stats[n]["closed"] >= float(dcfg["min_closed"])]
         self.res["candidates"] = self.candidate_rows()
         if not viable:
-            log.append(f"no candidate closes >= {100 * float(dcfg['min_closed']):.0f} % of the held-out gap with a "
-                       "positive penalised gain: verdict unexplained")
+            where = (" (whole, or in the records its fitted effect reaches)"
+                     if dcfg.get("closed_on", "heldout") == "reached" else "")
+            log.append(f"no candidate closes >= {100 * float(dcfg['min_closed']):.0f} % of the held-out gap{where} "
+                       "with a positive penalised gain: verdict unexplained")
             return self.finish("unexplained", [], [], self.design, self.S0, {})
         best = _pick({n: stats[n]["gain"] for n in viable}, {n: stats[n]["abs_score"] for n in viable})
         order_v = sorted(viable, key=lambda n: -stats[n]["gain"])
