@@ -542,3 +542,36 @@ def test_param_scale_twice_given_records_and_a_folder_for_a_design_are_one_line(
     assert "given more than once; give each record once" in _err(capsys)
     assert main(["design", "check", str(tmp_path)]) == 2
     assert f"{tmp_path}: a folder; expected a design YAML file" in _err(capsys)
+
+
+# ------------------------------------------------------------------ the workflow's own settings
+@pytest.mark.parametrize("block, key, value, needle", [
+    ("decision", "closed_on", "reachd", "decision.closed_on: 'reachd'; expected one of heldout, reached"),
+    ("decision", "closd_on", "reached", "decision.closd_on: unknown key (did you mean 'closed_on'?)"),
+    ("decision", "min_closed", 1.5, "decision.min_closed: 1.5; expected a number in (0, 1]"),
+    ("decision", "partner_resolvable", "yes", "decision.partner_resolvable: 'yes'; expected true or false"),
+    ("calibration", "max_param", 3, "profiles.ci.calibration.max_param: unknown key (did you mean 'max_params'?)"),
+    ("ci", "bootstrap", 0, "profiles.ci.bootstrap: 0; expected an integer >= 1"),
+])
+def test_discrepancy_settings_are_checked_before_any_work(tmp_path, monkeypatch, capsys, block, key, value, needle):
+    """A misspelt key or a value out of range in conf/discrepancy.yaml was read through a default
+    (closed_on: reachd ran the whole-gap gate without a word): now the command stops before reading
+    the design, naming the file and the key; the shipped settings pass."""
+    import yaml
+    from test_reliability_io import ROOT
+    doc = yaml.safe_load((ROOT / "conf" / "discrepancy.yaml").read_text())
+    where = {"decision": doc["decision"], "ci": doc["profiles"]["ci"],
+             "calibration": doc["profiles"]["ci"]["calibration"]}[block]
+    where[key] = value
+    (tmp_path / "conf").mkdir()
+    for marker in ("dvc.yaml", "pyproject.toml"):
+        (tmp_path / marker).write_text("")
+    (tmp_path / "conf" / "discrepancy.yaml").write_text(yaml.safe_dump(doc))
+    monkeypatch.chdir(tmp_path)
+    argv = ["discrepancy", "--design", "missing.yaml", "--measured", "m", "--out", "o"]
+    assert main(argv) == 2
+    err = _err(capsys)
+    assert "conf/discrepancy.yaml: invalid settings" in err and needle in err, err
+    (tmp_path / "conf" / "discrepancy.yaml").write_text((ROOT / "conf" / "discrepancy.yaml").read_text())
+    assert main(argv) == 2  # the shipped settings pass: the next check (the design file) speaks
+    assert "missing.yaml: design file not found" in _err(capsys)

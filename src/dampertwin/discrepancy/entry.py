@@ -19,6 +19,7 @@ from ..io import check_out_dir, json_safe, read_record, runs
 from ..protocols import flow_bench, load_protocol
 from ..variants import load_variant
 from . import features as F
+from .settings import decision_errors, profile_errors
 from .workflow import Problem, record_pool, run, verdict_document
 
 CONFIGURATIONS = {"flowbench": "valve", "compliance": "damper", "curving": "damper", "monosine": "module", "random": "module",
@@ -52,6 +53,14 @@ def load_config(conf: Path) -> dict:
     need = ("profiles", "features", "calibration_pool", "decision")
     if not isinstance(doc, dict) or any(k not in doc for k in need):
         raise DiscrepancyError(f"{path}: expected the keys {', '.join(need)}")
+    profiles = doc["profiles"]
+    bad = decision_errors(doc["decision"])
+    if not isinstance(profiles, dict):
+        bad.append(f"profiles: {profiles!r}; expected a mapping of {', '.join(PROFILES)}")
+    else:
+        bad += [e for name, prof in profiles.items() for e in profile_errors(str(name), prof)]
+    if bad:
+        raise DiscrepancyError([f"{path}: invalid settings"] + bad)
     return doc
 
 
