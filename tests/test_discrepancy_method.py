@@ -279,6 +279,41 @@ def test_closed_fraction_counts_the_records_the_effect_reaches():
     assert closed_where_reached(pr, z_ref, z_fit, z_fit, mask, 0.01) == (0.0, [])   # an effect that moves nothing
 
 
+def test_bootstrap_compares_the_fits_the_closure_gate_passes():
+    """decision.bootstrap_over: viable: a fit that closes most of its gap in the cycles it reaches
+    (a worn band's leakage) is not made unstable by a fit with a larger held-out gain spread thinly
+    over every cycle that closes less than min_closed (a pair absorbing model error); with
+    ``eligible`` (the earlier rule, same draws) the spread fit wins every bootstrap."""
+    from types import SimpleNamespace
+
+    from dampertwin.discrepancy.workflow import _Run
+
+    n = 40
+    unit = SimpleNamespace(n_cycles=n)
+    pr = SimpleNamespace(units=[unit], z=lambda z, boot=None: z if boot is None else z[boot[0]])
+    z_ref = np.full(n, 3.0)                    # one feature per cycle, model error everywhere
+    z_a = z_ref.copy()
+    z_a[:10] = 1.0                             # the band: closes its quarter of the cycles to noise level
+    z_b = np.full(n, 2.4)                      # the pair: a little everywhere (larger total chi^2 drop)
+    fits = {"leak": SimpleNamespace(simulated=z_a), "air+lag": SimpleNamespace(simulated=z_b)}
+    stats = {"leak": {"gain": 78.0, "closed": 0.9, "penalty": 2.0},
+             "air+lag": {"gain": 127.6, "closed": 0.3, "penalty": 2.0}}
+    ref = SimpleNamespace(simulated=z_ref)
+    off_of = {k: z_ref for k in fits}
+    shares = {}
+    for over in ("eligible", "viable"):
+        run = SimpleNamespace(problem=pr, held=np.ones(n, bool), fits=fits, seed=0, names=list(fits), log=[],
+                              dcfg={"min_closed": 0.5, "bootstrap_over": over})
+        names = _Run.contenders(run, stats)
+        _Run.bootstrap(run, stats, ref, off_of, 200, names)
+        shares[over] = ({k: v["share"] for k, v in stats.items()}, names, run.log)
+    assert shares["eligible"][1] == ["leak", "air+lag"] and shares["eligible"][0]["air+lag"] > 0.95
+    assert shares["eligible"][0]["leak"] < 0.05
+    assert shares["viable"][1] == ["leak"] and shares["viable"][0]["leak"] > 0.95
+    assert any("air+lag: gains more on held-out data than leak but closes 30 %" in m for m in shares["viable"][2])
+    assert shares["eligible"][2] == []
+
+
 def test_shared_transducer_gain_couples_the_records_of_one_chain(monkeypatch):
     """features.shared_covariance / Problem.set_noise: one load cell records
     every damper-level test, so a gain error common to the records is noise

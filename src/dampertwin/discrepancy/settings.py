@@ -17,6 +17,7 @@ DECISION = {
     "record_alpha": ("prob", 0.0, 1.0, False),     # 0: no per-record gate
     "min_closed": ("num", 0.0, 1.0, True),
     "closed_on": (("heldout", "reached"), None, None, False),
+    "bootstrap_over": (("eligible", "viable"), None, None, False),
     "partner_alpha": ("prob", 0.0, 1.0, False),
     "partner_resolvable": ("bool", None, None, False),
     "lead_resolvable": ("bool", None, None, False),

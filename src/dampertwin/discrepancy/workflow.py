@@ -446,7 +446,8 @@ class _Run:
                                     "partner's or the lead's fitted signature is below the record gate)")
         self.names = [n for n in stats if stats[n].get("eligible", True)]
         B = int(self.prof["bootstrap"])
-        self.bootstrap(stats, ref, off_of, B)
+        self.contended = self.contenders(stats)
+        self.bootstrap(stats, ref, off_of, B, self.contended)
         self.res["stats"] = self.stats = stats
         what = 'calibration refit' if ref is self.cal else 'design under test'
         for n, st in stats.items():
@@ -461,14 +462,31 @@ class _Run:
                    if chi_cal_h > NEAR_NOISE * nh else
                    f"{'lowers' if st['closed'] > 0 else 'raises'} the held-out chi2 (the {what} left it at or near "
                    f"noise level: {chi_cal_h:.0f} for {nh} features; a record's gate disagreed)")
-                + f", wins {100 * st['share']:.0f} % of {B} cycle bootstraps"
+                + (f", wins {100 * st['share']:.0f} % of {B} cycle bootstraps" if n in self.contended else
+                   ", not in the cycle bootstrap")
                 + (f"; the partner gains {st['nested_gain']:.1f} after its penalty {st['nested_penalty']:.1f} over "
                    f"{self.nested_label}" if "nested_gain" in st else ""))
 
-    def bootstrap(self, stats: dict, ref, off_of: dict, B: int) -> None:
-        """Each eligible fit's share of ``B`` bootstraps over the records'
+    def contenders(self, stats: dict) -> list:
+        """The fits the cycle bootstrap compares: every eligible one (``bootstrap_over: eligible``), or
+        those the closure gate passes with a positive gain (``viable``): a fit that closes less than
+        ``min_closed`` of its gap is not an explanation the decision may name, and its larger gain
+        spread over records the gate's winner does not reach does not make that winner unstable."""
+        if self.dcfg.get("bootstrap_over", "eligible") == "eligible":
+            return list(self.names)
+        lo = float(self.dcfg["min_closed"])
+        out = [n for n in self.names if stats[n]["gain"] > 0 and stats[n]["closed"] >= lo]
+        for n in self.names:
+            if n not in out and stats[n]["gain"] > 0 and out and stats[n]["gain"] > max(stats[m]["gain"] for m in out):
+                self.log.append(f"{n}: gains more on held-out data than {', '.join(out)} but closes "
+                                f"{100 * min(stats[n]['closed'], 1.0):.0f} % of its gap (< {100 * lo:.0f} %): left out "
+                                "of the cycle bootstrap, which compares the fits the gate passes")
+        return out
+
+    def bootstrap(self, stats: dict, ref, off_of: dict, B: int, names: list) -> None:
+        """Each contender's share of ``B`` bootstraps over the records'
         cycles that it wins (``_pick`` on the resampled held-out chi^2)."""
-        problem, held, fits, names = self.problem, self.held, self.fits, self.names
+        problem, held, fits = self.problem, self.held, self.fits
         rng = np.random.default_rng(self.seed)
         wins = dict.fromkeys(names, 0)
         for _ in range(B):
