@@ -233,7 +233,8 @@ def write_report(out, design, problem, res, doc, args) -> None:
         _md_table(doc["where"][:15]) if doc["where"] else "Nowhere beyond the listing threshold.\n",
         "## Candidates", "",
         "score = share of the training residual the candidate's signature explains (after the calibration "
-        "directions are projected out).", "",
+        "directions are projected out); for a pair (a + b), the share of the cycle bootstraps it wins (0 when "
+        "the closure gate left it out of the bootstrap: decision log).", "",
         _md_table([{"effect": c["effect"], "score": c["score"], "held-out gap before": c["heldout_gap_before"],
                     "held-out gap after": c["heldout_gap_after"],
                     "parameters": ", ".join(f"{k}={v:.3g}" for k, v in c["parameters"].items())}
