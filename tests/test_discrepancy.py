@@ -11,6 +11,7 @@ tests/test_discrepancy_method.py."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -143,6 +144,11 @@ def test_hidden_leakage_is_named(leak, tmp_path):
     assert doc["effects"][0] == "piston_leakage"
     assert doc["gap"]["closed_fraction"] >= 0.5
     assert doc["where"] and all(set(w) == {"test", "case", "phase_or_band", "excess"} for w in doc["where"])
+    # the report states the named fit's reach beside its name: the fractions the closure gate passed
+    report = (tmp_path / "out" / "report.md").read_text()
+    m = re.search(r"The named fit \(`piston_leakage[^`]*`.*? closes (\d+) % of the whole held-out gap and "
+                  r"(\d+) % of the excess in the (\d+) held-out record", report)
+    assert m and max(int(m.group(1)), int(m.group(2))) >= 50 and int(m.group(3)) >= 1, report[:1500]
     cand = next(c for c in doc["candidates"] if c["effect"] == "piston_leakage")
     gap = next(v for k, v in cand["parameters"].items() if "gap" in k)
     assert 2.5e-5 < gap < 1.2e-4  # the hidden 60 um, within what the records can tell

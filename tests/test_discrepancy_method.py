@@ -486,3 +486,18 @@ def test_a_pair_is_eligible_only_when_both_its_effects_are_relevant():
     assert not _pair_eligible({**t, "abs": 95.0})             # worse than the partner alone
     no_c = {k: v for k, v in t.items() if not k.endswith("_ratio")}
     assert _pair_eligible(no_c)                                # relevance tests switched off
+
+
+def test_the_report_states_the_named_fits_reach():
+    """Under `named` the report gives the named fit's gate fractions (whole gap, reached records) and its
+    bootstrap share from the workflow's stats; under any other verdict it adds nothing."""
+    from dampertwin.discrepancy.report import _named_lines
+
+    st = {"gain": 41.3, "share": 0.98, "closed": 0.99, "closed_whole": 0.04, "closed_reached": 0.99,
+          "reached": ["friction/baseline_P2"]}
+    line = " ".join(_named_lines({"named_fit": "seal", "stats": {"seal": st, "other": {**st, "closed_whole": 0.7}}}))
+    assert "closes 4 % of the whole held-out gap and 99 % of the excess in the 1 held-out record(s)" in line
+    assert "friction/baseline_P2" in line and "wins 98 %" in line and "gains 41.3" in line
+    st2 = {k: st[k] for k in ("gain", "share", "closed")}
+    assert "closes 99 % of the held-out gap," in " ".join(_named_lines({"named_fit": "seal", "stats": {"seal": st2}}))
+    assert _named_lines({"stats": {"seal": st}}) == []   # unexplained / ambiguous / none: no line

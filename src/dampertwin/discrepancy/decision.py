@@ -157,6 +157,12 @@ def _pair_eligible(t: dict) -> bool:
             and t.get("partner_ratio", 1.0) >= 1.0 and t.get("lead_ratio", 1.0) >= 1.0)
 
 
+def viable(names: list, stats: dict, min_closed: float) -> list:
+    """The fits the closure gate passes: a positive penalised held-out gain
+    and at least ``min_closed`` of their gap closed (``stats[n]["closed"]``)."""
+    return [n for n in names if stats[n]["gain"] > 0 and stats[n]["closed"] >= min_closed]
+
+
 def _pick(gain: dict, score: dict):
     """The winner among candidates with a positive held-out gain: the single
     effect with the largest gain over its own calibration (``gain``), replaced
@@ -172,4 +178,4 @@ def _pick(gain: dict, score: dict):
 
 
 __all__ = ["NEAR_NOISE", "chi", "mean_z2", "worst_record", "record_chi2", "closed_where_reached",
-           "assign_folds"]
+           "assign_folds", "viable"]

@@ -206,6 +206,22 @@ def _resolvability_section(rs, misfit: bool = False) -> list:
     return ["## What these records can resolve", "", text, "", _md_table(rows)]
 
 
+def _named_lines(res: dict) -> list[str]:
+    """Under a `named` verdict: how much of the held-out gap the named fit closes (the gate's
+    fractions) and how often it wins the cycle bootstrap, so the name is read beside its reach."""
+    st = res.get("stats", {}).get(res.get("named_fit"))
+    if st is None:
+        return []
+    pct = lambda x: f"{100 * min(max(x, 0.0), 1.0):.0f} %"  # noqa: E731
+    where = (f"{pct(st['closed_whole'])} of the whole held-out gap and {pct(st['closed_reached'])} of the excess in "
+             f"the {len(st['reached'])} held-out record(s) its fitted effect reaches ({', '.join(st['reached'])})"
+             if "reached" in st else f"{pct(st['closed'])} of the held-out gap")
+    return [f"The named fit (`{res['named_fit']}`, refitted with the calibration parameters) closes {where}, "
+            f"gains {st['gain']:.1f} in held-out chi^2 after its penalty and wins {pct(st['share'])} of the "
+            "cycle bootstraps among the fits the closure gate passes. The gap table below is the whole "
+            "held-out gap, calibration refit included.", ""]
+
+
 def write_report(out, design, problem, res, doc, args) -> None:
     plots = out / "plots"
     plots.mkdir(parents=True, exist_ok=True)
@@ -220,6 +236,7 @@ def write_report(out, design, problem, res, doc, args) -> None:
         f"profile `{args['profile']}`, seed {args['seed']}.", "",
         f"## Verdict: **{doc['verdict']}**" + (f" - {', '.join(doc['effects'])}" if doc["effects"] else ""), "",
     ]
+    lines += _named_lines(res)
     if doc["verdict"] == "ambiguous":
         lines += [f"Ambiguous group: {', '.join(doc['group'])}. Their signatures on the records present cannot be "
                   f"told apart; a {' or '.join(res.get('separating_tests', []))} record would separate them.", ""]

@@ -8,8 +8,8 @@ from __future__ import annotations
 import difflib
 import math
 
-# key -> (kind, low, high, required); kind: "num" (low < x <= high unless noted), "int" (low <= x),
-# "bool", or a tuple of allowed words. Ranges: probabilities and shares in [0, 1], scales > 0
+# key -> (kind, low, high, required); kind: "num" (low < x <= high), "prob" (low <= x < high: a test's
+# size, 0 switches the test off), "int" (low <= x), "bool", or a tuple of allowed words. Shares in (0, 1]
 DECISION = {
     "step": ("num", 0.0, 1.0, True),               # finite-difference step, normalised coordinates
     "disagree_mean_z2": ("num", 0.0, math.inf, True),

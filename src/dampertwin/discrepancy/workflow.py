@@ -23,7 +23,7 @@ import numpy as np
 from ..calibration.gauss_newton import GaussNewtonSettings
 from ..design import Design, DesignError
 from .decision import (NEAR_NOISE, _gap, _pair_eligible, _pick, _where, assign_folds, chi, closed_where_reached,
-                       mean_z2, worst_record)
+                       mean_z2, viable, worst_record)
 from .problem import Problem, Row, nan_row, record_pool, simulate_unit
 from .refits import (Candidate, at_design, calibration_params, catalogue, refit, resolvability, restarted,
                      select_params, sensitivity, with_priors)
@@ -475,7 +475,7 @@ class _Run:
         if self.dcfg.get("bootstrap_over", "eligible") == "eligible":
             return list(self.names)
         lo = float(self.dcfg["min_closed"])
-        out = [n for n in self.names if stats[n]["gain"] > 0 and stats[n]["closed"] >= lo]
+        out = viable(self.names, stats, lo)
         for n in self.names:
             if n not in out and stats[n]["gain"] > 0 and out and stats[n]["gain"] > max(stats[m]["gain"] for m in out):
                 self.log.append(f"{n}: gains more on held-out data than {', '.join(out)} but closes "
@@ -524,21 +524,22 @@ class _Run:
         """The verdict: named (a stable winner), ambiguous (a group the
         bootstrap does not separate) or unexplained."""
         dcfg, stats, log = self.dcfg, self.stats, self.log
-        viable = [n for n in self.names if stats[n]["gain"] > 0 and stats[n]["closed"] >= float(dcfg["min_closed"])]
+        ok = viable(self.names, stats, float(dcfg["min_closed"]))
         self.res["candidates"] = self.candidate_rows()
-        if not viable:
+        if not ok:
             where = (" (whole, or in the records its fitted effect reaches)"
                      if dcfg.get("closed_on", "heldout") == "reached" else "")
             log.append(f"no candidate closes >= {100 * float(dcfg['min_closed']):.0f} % of the held-out gap{where} "
                        "with a positive penalised gain: verdict unexplained")
             return self.finish("unexplained", [], [], self.design, self.S0, {})
-        best = _pick({n: stats[n]["gain"] for n in viable}, {n: stats[n]["abs_score"] for n in viable})
-        order_v = sorted(viable, key=lambda n: -stats[n]["gain"])
+        best = _pick({n: stats[n]["gain"] for n in ok}, {n: stats[n]["abs_score"] for n in ok})
+        order_v = sorted(ok, key=lambda n: -stats[n]["gain"])
         group = [n for n in order_v if stats[n]["share"] >= float(dcfg["group_share"]) or n == best]
         f = self.fits[best]
         effs = stats[best]["cand"].effects
         if stats[best]["share"] >= float(dcfg["stable"]) or (len(group) == 1 and stats[best]["share"] >= 0.5):
             log.append(f"named: {' + '.join(effs)}")
+            self.res["named_fit"] = best
             return self.finish("named", list(effs), [], f.design, f.simulated, f.best)
         if len(group) >= 2:
             flat = list(dict.fromkeys(e for n in group for e in stats[n]["cand"].effects))
