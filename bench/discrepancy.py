@@ -22,7 +22,9 @@ answer of each is the library table's ``truth_effects`` column
   single    one hidden truth effect at --magnitudes x its typical magnitude
             (TRUTH_MAGNITUDE below: a worn band, air drawn in from a low oil
             level, a two-node thermal network, top-mount free play), nominal part
-  pair      two hidden truth effects at their typical magnitude
+  pair      two hidden truth effects, each at --pair-magnitude x its typical
+            magnitude (default 1); pairs with a member covered by --start-set
+            (its every family on at the start) only when no other pair is left
   artefact  out of library: accelerometer mount resonance or load-cell
             crosstalk added to the measured records
 
@@ -127,10 +129,15 @@ def truth_cases(args, base: dict, rng) -> tuple[list, list]:
             for i in range(args.per_effect):
                 mm = float(m * np.exp(rng.normal(0, 0.1)))
                 out.append(("single", [h], hide((h, mm)), None))
+    # a pair whose member is covered at the start (--start-set: every family of it on and calibrated) is
+    # a single case in disguise, since that member cannot be named: such pairs come only when no other is left
+    on = start_on(getattr(args, "start_set", {}))
     pairs = [(a, b) for i, a in enumerate(hidden) for b in hidden[i + 1:]]
+    pairs = [p for p in pairs if all(families([h], "truth", on) for h in p)] or pairs
+    m = getattr(args, "pair_magnitude", 1.0)
     for i in range(args.pairs if pairs else 0):
         a, b = pairs[i % len(pairs)]
-        out.append(("pair", [a, b], hide((a, 1.0), (b, 1.0)), None))
+        out.append(("pair", [a, b], hide((a, m), (b, m)), None))
     out += _artefacts(args, rng)
     return out, hidden
 
@@ -362,6 +369,8 @@ def main(argv=None) -> int:
     ap.add_argument("--lab", choices=["truth", "library"], default="truth",
                     help="truth: hidden effects in the reference damper's own physics (default); library: lab 2, "
                          "the candidates' own equations")
+    ap.add_argument("--pair-magnitude", type=float, default=1.0,
+                    help="truth lab: hidden magnitude / typical magnitude of each effect of a pair case")
     ap.add_argument("--magnitudes", type=lambda t: [float(x) for x in t.split(",")], default=[0.6, 1.5],
                     help="truth lab: hidden magnitudes / typical magnitude of the single cases")
     ap.add_argument("--dev-scale", type=float, default=1.5,

@@ -91,6 +91,13 @@ def score(rows: list, args, names: list) -> dict:
     def covered(r):  # every family of the single case's effect is on in the start design
         return bool(r["start_on"]) and not families(r["truth"][:1], args.lab, r["start_on"])
 
+    def both_named(r):  # each hidden effect's family among the named effects
+        return r["verdict"] == "named" and all(set(r["effects"]) & families([n], args.lab, r["start_on"])
+                                               for n in r["truth"])
+
+    def pair_resolvable(r):
+        return all(families([n], args.lab, r["start_on"]) for n in r["truth"]) and not r.get("truth_unresolvable")
+
     always = always_on_families(args.lab)
     named_anywhere = lambda r: named_beside(r, args.lab)  # noqa: E731
     foreign_name = lambda r: foreign(r, args.lab, always)  # noqa: E731
@@ -148,8 +155,13 @@ def score(rows: list, args, names: list) -> dict:
         "single_visible_share": rate(lambda r: r["cell"] == "single" and r.get("visibility"), visible),
         "pair_wrong_family_rate": rate(lambda r: r["cell"] == "pair", wrong_name),
         "pair_foreign_named_rate": rate(lambda r: r["cell"] == "pair", foreign_name),
-        "pair_both_named_rate": rate(lambda r: r["cell"] == "pair", lambda r: r["verdict"] == "named" and all(
-            set(r["effects"]) & families([n], args.lab, r["start_on"]) for n in r["truth"])),
+        "pair_both_named_rate": rate(lambda r: r["cell"] == "pair", both_named),
+        # the pairs whose effects could both be named: neither covered at the start nor called hidden
+        # under the model error by the resolvability check (the single cases' figure, for pairs)
+        "pair_both_named_rate_resolvable": rate(lambda r: r["cell"] == "pair" and pair_resolvable(r), both_named),
+        "pair_with_a_member_covered_at_start": sum(1 for r in rows if r["cell"] == "pair" and any(
+            not families([n], args.lab, r["start_on"]) for n in r["truth"])),
+        "pair_magnitude": getattr(args, "pair_magnitude", 1.0) if args.lab == "truth" else None,
         "artefact_unexplained_rate": rate(lambda r: r["cell"] == "artefact", lambda r: r["verdict"] == "unexplained"),
         "artefact_confident_wrong_rate": rate(lambda r: r["cell"] == "artefact", lambda r: r["verdict"] == "named"),
         "median_closed_fraction_named": float(np.median(named_closed)) if named_closed else None,

@@ -222,3 +222,45 @@ def test_resolvable_rates_against_the_model_error_and_the_noise(bench):
     assert got["single_named_rate_resolvable"] == 1 / 2 and got["single_named_rate_resolvable_noise"] == 1 / 3
     assert got["single_unexplained_under_model_error"] == 1 and got["control_false_named_rate"] == 0.0
     assert bench._noise_ratio({"ratio": 0.4, "ratio_noise": 2.0}) == 2.0 and bench._noise_ratio({"ratio": 0.4}) == 0.4
+
+
+def test_pairs_are_drawn_from_effects_the_start_leaves_nameable(bench):
+    """A pair with a member covered at the start (the two-node thermal network beside oil_thermal on) is a
+    single case in disguise: with such a start the pairs are drawn from the other effects, at
+    --pair-magnitude; the pair rate among resolvable pairs leaves out covered and unresolvable members."""
+    import argparse
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from discrepancy_score import score
+
+    base = {k: v for k, v in bench.load_sample(ROOT / "conf" / "lab" / "sample.yaml").items() if not k.startswith("_")}
+    start = {"effects.oil_thermal": True}
+    args = argparse.Namespace(controls=0, per_effect=0, pairs=4, artefacts=0, magnitudes=[1.0], effects=None,
+                              dev_scale=1.5, start_set=start, pair_magnitude=1.5)
+    plan, _ = bench.truth_cases(args, base, np.random.default_rng(0))
+    pairs = [t for cell, t, s, _ in plan if cell == "pair"]
+    assert len(pairs) == 4 and not any("two_node_thermal" in t for t in pairs), pairs
+    assert len({tuple(t) for t in pairs}) == 3          # band + play, band + air, play + air, then again
+    band = next(s for cell, t, s, _ in plan if t == ["band_eccentricity", "top_mount_free_play"])
+    one, _ = bench.truth_cases(argparse.Namespace(**{**vars(args), "pair_magnitude": 1.0}), base,
+                               np.random.default_rng(0))
+    band1 = next(s for cell, t, s, _ in one if t == ["band_eccentricity", "top_mount_free_play"])
+    assert band["values"]["chambers.BAND_H"] == pytest.approx(1.5 * band1["values"]["chambers.BAND_H"])
+    # without a start set every pair comes, as before
+    plain, _ = bench.truth_cases(argparse.Namespace(**{**vars(args), "start_set": {}, "pairs": 6}), base,
+                                 np.random.default_rng(0))
+    assert any("two_node_thermal" in t for cell, t, s, _ in plain if cell == "pair")
+
+    row = {"cell": "pair", "truth": ["band_eccentricity", "top_mount_free_play"], "start_on": ["oil_thermal"],
+           "effects": [], "group": [], "closed": 0.0, "gap_before": 4.0, "lead": "piston_leakage",
+           "lead_gap_after": 3.0, "visibility": None, "truth_unresolvable": [], "truth_unresolvable_noise": []}
+    rows = [{**row, "verdict": "named", "effects": ["piston_leakage", "top_mount_backlash"], "closed": 0.7},
+            {**row, "verdict": "unexplained", "truth_unresolvable": ["band_eccentricity"]},     # under the error
+            {**row, "verdict": "unexplained", "truth": ["band_eccentricity", "two_node_thermal"]},  # covered
+            {**row, "verdict": "named", "effects": ["piston_leakage"], "closed": 0.6}]          # one of two
+    got = score(rows, SimpleNamespace(lab="truth", seed=1, scale=1.0, magnitudes=[1.0], start_set=start,
+                                      pair_magnitude=1.5), ["piston_leakage"])
+    assert got["pair_both_named_rate"] == 1 / 4 and got["pair_both_named_rate_resolvable"] == 1 / 2
+    assert got["pair_with_a_member_covered_at_start"] == 1 and got["pair_magnitude"] == 1.5
