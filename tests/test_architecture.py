@@ -317,3 +317,28 @@ def test_the_discrepancy_workflow_runs_on_a_twin_tube(designs, tmp_path):
     v = json.loads((out / "verdict.json").read_text())
     assert v["verdict"] == "none"
     assert load(out / "design.yaml").architecture == "twin_tube"
+
+
+@pytest.mark.parametrize("name", ["twin_tube", "mono_tube"])
+@pytest.mark.parametrize("effect", ["oil_thermal", "gas_release"])
+def test_a_passive_damper_writes_every_state_rate_with_an_effect_on(designs, name, effect):
+    """An effect with states runs the extended model; the active valve's effect states (lag, spool,
+    coil) have no valve on a passive damper and must still get a rate (0): the solver's rate vector is
+    not cleared between calls, so an unwritten entry is whatever was in memory (NaN here)."""
+    from dampertwin.model import layout as L
+    from dampertwin.model.damper import RHS_BY_CFG
+    from dampertwin.simulation import model_map
+
+    d = designs[name]
+    p = pack(d, 0.0, effects={effect: True})
+    cfg = L.variant(L.CONFIGURATIONS["damper"], p)
+    assert cfg == L.CFG_DAMPER_X
+    ex = Excitation.sine(0.005, 13.0, 0.2)
+    p[L.P.EX_T0], p[L.P.EX_DT] = ex.t0, ex.dt
+    y = L.initial_state(p, cfg)
+    dy, out = np.full(L.N_STATES[cfg], np.nan), np.zeros(L.N_OUT)
+    RHS_BY_CFG[cfg](0.01, y, p, ex.array(), model_map(d.pq_map), dy, out)
+    names = L.state_names(cfg)
+    assert np.all(np.isfinite(dy)), [names[i] for i in range(len(dy)) if not np.isfinite(dy[i])]
+    oe = L.N_STATES[L.CFG_DAMPER]
+    assert all(dy[oe + k] == 0.0 for k in (L.EX.i_coil, L.EX.i_eff, L.EX.p_spool, L.EX.p_open))

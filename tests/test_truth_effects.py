@@ -144,7 +144,7 @@ def test_an_eccentric_worn_band_leaks_more_and_takes_rebound_force():
 
 # --- two-node thermal network ----------------------------------------------------------------------------------
 
-def _thermal(G_OW, C_OIL=570.0, C_W=644.0):
+def _thermal(G_OW, C_OIL=570.0, C_W=630.0):
     q = np.zeros(len(th.PARAMS))
     q[th.C_OIL], q[th.C_W], q[th.G_OW], q[th.ON] = C_OIL, C_W, G_OW, 1.0
     return q
@@ -160,13 +160,18 @@ def test_two_nodes_with_an_infinite_conductance_are_one_node():
     """G_OW -> inf: the oil follows the one-node law C dT/dt = P - HA (T -
     T_amb) with C = C_OIL + C_W, T = T_amb + P / HA (1 - exp(-HA t / C));
     a finite G_OW heats the oil faster at first (its node is smaller)."""
+    from dampertwin.truth.params import TRUTH_NOMINAL as N
+
+    # the limit is the truth's own one-node law: the two capacities sum to its C_TH
+    assert N["thermal.C_OIL"] + N["thermal.C_W"] == N["chambers.C_TH"]
+    assert (N["thermal.C_OIL"], N["thermal.C_W"]) == (570.0, 630.0)
     P, HA = 200.0, 5.0
     t = np.linspace(0.0, 600.0, 13)
-    one = 300.0 + P / HA * (1 - np.exp(-HA * t / (570.0 + 644.0)))
+    one = 300.0 + P / HA * (1 - np.exp(-HA * t / (570.0 + 630.0)))
     r = _heat(_thermal(1e7), P, HA, 600.0)
     assert np.max(np.abs(r.sol(t)[0] - one)) < 1e-3
     r = _heat(_thermal(10.0), P, HA, 600.0)
-    assert r.sol(30.0)[0] > 300.0 + P / HA * (1 - math.exp(-HA * 30.0 / (570.0 + 644.0))) + 1.0
+    assert r.sol(30.0)[0] > 300.0 + P / HA * (1 - math.exp(-HA * 30.0 / (570.0 + 630.0))) + 1.0
 
 
 def test_two_node_network_balances_power_and_reaches_the_series_conductance():
@@ -176,7 +181,7 @@ def test_two_node_network_balances_power_and_reaches_the_series_conductance():
     rng = np.random.default_rng(5)
     for T, Tw, P in zip(rng.uniform(290, 360, 20), rng.uniform(290, 360, 20), rng.uniform(0, 500, 20)):
         a, b = th.two_node(T, Tw, P, 5.0, 300.0, q, 0)
-        assert 570.0 * a + 644.0 * b == pytest.approx(P - 5.0 * (Tw - 300.0), rel=1e-12, abs=1e-9)
+        assert 570.0 * a + 630.0 * b == pytest.approx(P - 5.0 * (Tw - 300.0), rel=1e-12, abs=1e-9)
     r = _heat(q, 100.0, 5.0, 5e4)
     assert r.y[0, -1] - 300.0 == pytest.approx(100.0 * (1 / 10.0 + 1 / 5.0), rel=1e-4)
 

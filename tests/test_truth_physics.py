@@ -105,15 +105,32 @@ def test_stack_area_is_the_swept_volume_per_lift():
 
 
 def test_coil_step_response_is_an_rl_circuit():
-    """Driver off: the coil sees its supply voltage as a step,
-    i(t) = U/R (1 - exp(-R t / L))."""
-    p, rest, v = truth(current_driver=False)
+    """A command far above what the supply can drive (100 A against U / R = 3.4 A) saturates the driver
+    at its supply voltage from zero current: the coil sees a voltage step, i(t) = U/R (1 - exp(-R t / L))."""
+    p, rest, v = truth()
     ex = Excitation(0.0, 0.001, np.zeros(31), np.zeros(31))
-    r = simulate(p, ex, "damper", current=0.0, rest=rest, rate=5000.0, settle=0.0)
+    r = simulate(p, ex, "damper", current=100.0, rest=rest, rate=5000.0, settle=0.0, start_current=0.0)
     p0 = {k: v.get(k, tp.TRUTH_NOMINAL.get(k)) for k in ("active_valve.U_MAX", "active_valve.R", "active_valve.L")}
     U, R, L = p0["active_valve.U_MAX"], p0["active_valve.R"], p0["active_valve.L"]
     i = U / R * (1 - np.exp(-R * r.time / L))
     assert np.max(np.abs(r["coil current [A]"] - i)) < 1e-4 * U / R
+
+
+def test_without_its_driver_the_coil_carries_the_command():
+    """Driver off (the truth without driver and coil dynamics): an ideal current source. From a start at
+    zero current the coil carries the command at once, and at a constant command the damper force equals
+    the driver's once the driver has settled (its steady state has no error)."""
+    ex = Excitation.sine(0.01, 3.0, 2 / 3)
+    out = {}
+    for on in (True, False):
+        p, rest, _ = truth(current_driver=on, gas_dissolution=False)
+        out[on] = simulate(p, ex, "damper", current=0.9, rest=rest, rate=5000.0, start_current=0.0)
+    assert np.all(out[False]["coil current [A]"] == 0.9)
+    i_on = out[True]["coil current [A]"]
+    assert abs(i_on[0] - 0.9) < 1e-3  # the driver's settle has reached the command before the record
+    f_on, f_off = out[True]["rod force [N]"], out[False]["rod force [N]"]
+    assert np.max(np.abs(f_off - f_on)) < 1e-4 * np.max(np.abs(f_on)), np.max(np.abs(f_off - f_on))
+    assert np.ptp(f_on) > 100.0  # the valve really carried flow
 
 
 def test_current_driver_reaches_the_command_with_finite_bandwidth():

@@ -131,6 +131,11 @@ def _damper(t, y, p, ex, aux, dy, out, module, extended):
             p_o = spool_pressure(y, oe + EX.p_spool, p, dp_a, dy, I_a)
             p_o = opening_pressure(y, oe + EX.p_open, p, p_o, dy)
             Q_a = opening_flow(p, aux, p_o, dp_a, Q_a, I_a)
+    elif extended:  # a passive damper has no active valve: its effect states stay at their initial values
+        dy[oe + EX.i_coil] = 0.0
+        dy[oe + EX.i_eff] = 0.0
+        dy[oe + EX.p_spool] = 0.0
+        dy[oe + EX.p_open] = 0.0
 
     # rod friction (eq. 4.38-4.41) and rod force (eq. 4.1); oil_thermal heats with F_d s'
     F_mu = friction(y, SB.rod_friction, p, sd, dy, P_r)

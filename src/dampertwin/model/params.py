@@ -255,8 +255,8 @@ EFFECTS_LIBRARY: dict[str, EffectRecord] = {r.name: r for r in (
                  truth_effects=("seal",)),
     EffectRecord("fixture_resonance", "the rig's fixture (crosshead) resonating on the load cell: the force "
                  "channel reads the force through a base-excited 2nd-order transmissibility (f_n, zeta); a "
-                 "measurement-chain effect, the damper is unchanged; thesis 7.3, fourth suspect (mounting "
-                 "structure above 500 Hz)",
+                 "measurement-chain effect, the damper is unchanged; the force channel, not the thesis' "
+                 "fourth suspect (7.3: the LVDT / accelerometer mount above 500 Hz, the acceleration channel)",
                  "Thomson & Dahmouni 1998, 3.5; Harris 2010, ch. 2", False,
                  "force spectrum near f_n (module, random test); load-cell reading over a force step",
                  "higher near f_n (x sqrt(1 + 4 zeta^2) / (2 zeta) at f_n), unchanged below f_n / 10", _C,

@@ -307,7 +307,7 @@ def _damper(t, y, p, ex, dy, out, module, ext, fpo):
     out[O_Q_BV] = Q2 + Qb2 - Q3
     out[O_Q_BP] = Q_bp
     out[O_Q_A] = Q_a + Q_pl
-    out[O_I] = y[S_AV + sv.I]
+    out[O_I] = sv.coil_current(y[S_AV + sv.I], p[RUN + CURRENT], p, AV)
     out[O_T_OIL] = T
     out[O_T_GAS] = y[S_GAS + gs.T_G]
     if triple:

@@ -131,8 +131,9 @@ TRUTH_NOMINAL = {
     # hidden effects (off unless a sample names them; these values when it says `true`):
     # a worn band's piston off the bore's axis by half its clearance
     "chambers.BAND_ECC": 0.5,
-    # two thermal nodes: 0.3 kg oil x 1.9 kJ/(kg K), 1.4 kg steel x 0.46 kJ/(kg K), 250 W/(m^2 K) over 0.04 m^2
-    "thermal.C_OIL": 570.0, "thermal.C_W": 644.0, "thermal.G_OW": 10.0, "thermal.ON": 0.0,
+    # two thermal nodes: 0.3 kg oil x 1.9 kJ/(kg K), 1.4 kg steel x 0.45 kJ/(kg K) (carbon steel, Incropera
+    # table A.1), 250 W/(m^2 K) over 0.04 m^2; C_OIL + C_W = chambers.C_TH, the one-node law's capacity
+    "thermal.C_OIL": 570.0, "thermal.C_W": 630.0, "thermal.G_OW": 10.0, "thermal.ON": 0.0,
     # top-mount play +-0.1 mm; steel washer on the sleeve: Hertz-like 2e10 N/m^1.5, restitution ~0.85 at 1 m/s
     # (LAM = 3 (1 - e) / (2 v), Gilardi & Sharf 2002); 0.25 kg inner sleeve and bearing
     "free_play.GAP": 1e-4, "free_play.K": 2e10, "free_play.LAM": 0.2, "free_play.EPS": 1e-8, "free_play.M_S": 0.25,

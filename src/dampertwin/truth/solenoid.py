@@ -3,7 +3,8 @@
 Driver: a PI current loop (gains KP [V/A], KI [V/(A s)]) whose output
 voltage saturates smoothly at the supply U_MAX; its closed-loop bandwidth
 is finite (~ (R + KP) / (2 pi L)). Coil: L di/dt = u - R i (an R-L
-circuit). Magnetic force: F = F_S r^2 / sqrt(1 + r^2), r = i / I_S: square
+circuit). Switched off (effect ``current_driver``), an ideal current
+source: the current is the command, no driver or coil dynamics. Magnetic force: F = F_S r^2 / sqrt(1 + r^2), r = i / I_S: square
 law while the iron is unsaturated, linear (the proportional-solenoid
 range) once it saturates (Vaughan & Gamble, ASME J. Dyn. Syst. Meas. Control
 118 (1996) 705; Manring, Hydraulic Control Systems, 2005, 6.2). Pilot: a
@@ -45,13 +46,20 @@ GAP_EPS = 1e-7  # [m] rounding of the lifts in the flow laws
 
 @njit(**JIT)
 def coil(i, e, i_cmd, p, o):
-    """(di/dt, de/dt) of the R-L coil behind the PI current driver; with
-    DRIVER off the coil sees the fixed voltage U_MAX (a voltage step)."""
+    """(di/dt, de/dt) of the R-L coil behind the PI current driver. With
+    DRIVER off the coil is fed by an ideal current source: no electrical
+    dynamics, the current is the command (:func:`coil_current`), rates 0."""
     if p[o + DRIVER] > 0.5:
         u = p[o + U_MAX] * math.tanh((p[o + KP] * (i_cmd - i) + p[o + KI] * e) / p[o + U_MAX])
-    else:
-        u = p[o + U_MAX]
-    return (u - p[o + R] * i) / p[o + L], i_cmd - i
+        return (u - p[o + R] * i) / p[o + L], i_cmd - i
+    return 0.0, 0.0
+
+
+@njit(**JIT)
+def coil_current(i, i_cmd, p, o):
+    """The coil's current [A]: the state behind the driver, or the command
+    itself with DRIVER off (an ideal current source)."""
+    return i if p[o + DRIVER] > 0.5 else i_cmd
 
 
 @njit(**JIT)
@@ -84,7 +92,7 @@ def active_valve(y, s, p, o, i_cmd, P_in, P_out, rho, mu, dy):
     di, de = coil(y[s + I], y[s + E], i_cmd, p, o)
     dy[s + I] = di
     dy[s + E] = de
-    F_mag = magnetic_force(y[s + I], p, o)
+    F_mag = magnetic_force(coil_current(y[s + I], i_cmd, p, o), p, o)
     xp = y[s + XP]
     vp = y[s + VP]
     Pk = y[s + PK]

@@ -16,8 +16,8 @@ The reserve gas exchanges heat with the oil as before (gas.py), so it
 follows the oil node. With G_OW -> infinity the nodes move together and
 the network is the one-node law with C_TH = C_OIL + C_W
 (tests/test_truth_effects.py). Capacities: 0.3 kg oil x 1.9 kJ/(kg K) and
-1.4 kg steel x 0.46 kJ/(kg K) (Calvo et al., Int. J. Vehicle Design 2009,
-the masses of chambers.C_TH); G_OW from forced convection in the tubes,
+1.4 kg steel x 0.45 kJ/(kg K) (Calvo et al., Int. J. Vehicle Design 2009,
+the masses of chambers.C_TH, whose 1200 J/K they sum to); G_OW from forced convection in the tubes,
 h ~ 250 W/(m^2 K) over ~0.04 m^2 of wetted steel.
 """
 
