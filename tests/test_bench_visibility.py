@@ -84,8 +84,9 @@ def test_model_error_by_test_and_a_diagnostic_design(bench, records, capsys):
 def test_model_error_attributed_to_the_truths_physics(bench, records, capsys):
     """bench/model_error.py --truth-off: the case's records made again with one of the truth's always-on
     effects off (same sample, seed and noise) and compared with the same design. Switching off the
-    current driver (the coil current then follows its command at once) moves the 1.6 A mono-sine record,
-    so its row differs from the case's own; a second call reuses the records (stamp); a hidden effect or
+    shim stacks' friction moves the 1.6 A mono-sine record, so its row differs from the case's own;
+    switching off the current driver (an ideal current source: at a constant command the settled
+    driver's current) leaves it as it is; a second call reuses the records (stamp); a hidden effect or
     an unknown name is refused naming the known ones."""
     import shutil
 
@@ -94,13 +95,16 @@ def test_model_error_attributed_to_the_truths_physics(bench, records, capsys):
     spec.loader.exec_module(me)
     shutil.copytree(records / "off", records / "case0", dirs_exist_ok=True)
     shutil.copy(records / "off.yaml", records / "case0.yaml")
-    args = ["--work", str(records), "--case", "0", "--truth-off", "current_driver"]
+    args = ["--work", str(records), "--case", "0", "--truth-off", "shim_friction"]
     assert me.main(args) == 0
     start, off = [json.loads(x) for x in capsys.readouterr().out.strip().splitlines()]
-    assert off["truth_off"] == ["current_driver"] and "truth_off" not in start
+    assert off["truth_off"] == ["shim_friction"] and "truth_off" not in start
     assert set(off["mean_z2_by_test"]) == {"monosine/baseline_1.6"}
     assert off["gap"] != start["gap"], (start, off)
-    made = records / "truth_off0" / "current_driver" / ".case.json"
+    assert me.main(["--work", str(records), "--case", "0", "--truth-off", "current_driver"]) == 0
+    same = [json.loads(x) for x in capsys.readouterr().out.strip().splitlines()][1]
+    assert same["truth_off"] == ["current_driver"] and same["mean_z2_by_test"] == start["mean_z2_by_test"], same
+    made = records / "truth_off0" / "shim_friction" / ".case.json"
     assert json.loads(made.read_text())["seed"] == json.loads((records / "case0" / ".case.json").read_text())["seed"]
     t0 = made.stat().st_mtime_ns
     assert me.main(args) == 0 and made.stat().st_mtime_ns == t0  # reused, not made again
