@@ -364,14 +364,25 @@ def _one_thread() -> None:
     numba.set_num_threads(1)
 
 
+def _magnitude(text: str) -> float:
+    """A magnitude factor of the command line: finite and > 0."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not (math.isfinite(x) and x > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a finite factor > 0 (1 = typical magnitude)")
+    return x
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--lab", choices=["truth", "library"], default="truth",
                     help="truth: hidden effects in the reference damper's own physics (default); library: lab 2, "
                          "the candidates' own equations")
-    ap.add_argument("--pair-magnitude", type=float, default=1.0,
+    ap.add_argument("--pair-magnitude", type=_magnitude, default=1.0,
                     help="truth lab: hidden magnitude / typical magnitude of each effect of a pair case")
-    ap.add_argument("--magnitudes", type=lambda t: [float(x) for x in t.split(",")], default=[0.6, 1.5],
+    ap.add_argument("--magnitudes", type=lambda t: [_magnitude(x) for x in t.split(",")], default=[0.6, 1.5],
                     help="truth lab: hidden magnitudes / typical magnitude of the single cases")
     ap.add_argument("--dev-scale", type=float, default=1.5,
                     help="truth lab: controls scale the sample's part deviations by U(0, this)")

@@ -268,3 +268,16 @@ def test_pairs_are_drawn_from_effects_the_start_leaves_nameable(bench):
                                       pair_magnitude=1.5), ["piston_leakage"])
     assert got["pair_both_named_rate"] == 1 / 4 and got["pair_both_named_rate_resolvable"] == 1 / 2
     assert got["pair_with_a_member_covered_at_start"] == 1 and got["pair_magnitude"] == 1.5
+
+
+@pytest.mark.parametrize("bad", [["--pair-magnitude", "-1"], ["--pair-magnitude", "nan"], ["--magnitudes", "0.6,0"],
+                                 ["--magnitudes", "0.6,x"], ["--pair-magnitude", "inf"]])
+def test_a_magnitude_factor_must_be_finite_and_positive(bench, bad, capsys, tmp_path):
+    """A hidden magnitude of zero, below zero or not a number would hide no effect (or a negative band):
+    refused at the command line, naming the option and the value, before any lab run."""
+    with pytest.raises(SystemExit) as e:
+        bench.main([*bad, "--controls", "0", "--per-effect", "0", "--pairs", "0", "--artefacts", "0",
+                    "--work", str(tmp_path / "w")])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert bad[0] in err and "expected a finite factor > 0" in err, err
