@@ -18,7 +18,7 @@ from scipy import signal
 from scipy.integrate import solve_ivp
 
 from dampertwin import simulate
-from dampertwin.design import loads
+from dampertwin.design import DesignError, loads
 from dampertwin.discrepancy.entry import load_config
 from dampertwin.discrepancy.refits import calibration_params
 from dampertwin.discrepancy.workflow import catalogue
@@ -88,6 +88,25 @@ def test_an_effect_switched_on_is_calibrated_not_offered(base):
     assert c_keys and set(pool) == off | c_keys  # the C ones only (tau_rel, tau_dis, C_th stay fixed)
     assert pool["aeration.alpha0"].start == 0.02
     assert {"aeration", "oil_thermal"}.isdisjoint(c.name for c in catalogue(on, cfg))
+
+
+def test_an_effect_that_modifies_an_off_effect_is_refused_and_not_offered(base):
+    """seal_friction_pressure and rod_friction_asymmetric change rod friction's LuGre levels, gas_release
+    eq. 4.14's gas share: with the effect they modify off they would do nothing. A design switching one on
+    without it fails naming both switches; a design with the modified effect off is not offered them."""
+    from dampertwin.design.schema import EFFECT_NEEDS
+
+    cfg = load_config(ROOT / "conf")
+    assert EFFECT_NEEDS == {"rod_friction_asymmetric": "rod_friction", "seal_friction_pressure": "rod_friction",
+                            "gas_release": "gas_content"}
+    for eff, need in EFFECT_NEEDS.items():
+        with pytest.raises(DesignError, match=rf"effects\.{eff}: true, but it modifies effects\.{need}, which is "
+                                              rf"false .*expected effects\.{need}: true"):
+            base.with_overrides({f"effects.{eff}": True, f"effects.{need}": False})
+        base.with_overrides({f"effects.{eff}": True})  # with the effect it modifies on: a valid design
+        offered = {c.name for c in catalogue(base.with_overrides({f"effects.{need}": False}), cfg)}
+        assert eff not in offered, eff
+        assert eff in {c.name for c in catalogue(base, cfg)}, eff
 
 
 # ------------------------------------------------------------ off is off, beside another state effect

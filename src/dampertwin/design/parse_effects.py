@@ -7,7 +7,7 @@ import math
 
 from .entries import TEXT_FIELDS, EffectParameter, check_fields, check_strings
 from .parse_params import _is_num
-from .schema import EFFECT_PARAMETERS, EFFECTS
+from .schema import EFFECT_NEEDS, EFFECT_PARAMETERS, EFFECTS
 
 EFFECT_PARAM_FIELDS = ("name", "effect", "symbol", "description", "type", "value", "unit", "source", "typical")
 EFFECT_PARAM_TYPES = ("C", "F")
@@ -28,6 +28,10 @@ def _parse_effects(eff, where, errors) -> dict[str, bool]:
     for k in EFFECTS:
         if k not in eff:
             errors.append(f"{where}: effects.{k}: missing switch (expected true or false)")
+    for k, need in EFFECT_NEEDS.items():
+        if out.get(k) and out.get(need) is False:
+            errors.append(f"{where}: effects.{k}: true, but it modifies effects.{need}, which is false (it would "
+                          f"do nothing); expected effects.{need}: true or effects.{k}: false")
     return {k: out[k] for k in EFFECTS if k in out}
 
 

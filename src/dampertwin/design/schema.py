@@ -172,6 +172,15 @@ EFFECTS: dict[str, str] = {
                    "rates",
 }
 
+# Effects that modify another effect's equations and do nothing without it
+# (effect -> the effect it needs on): rod_friction.friction scales or raises
+# the LuGre levels of eq. 4.41; gas_release delays eq. 4.14's gas share.
+EFFECT_NEEDS: dict[str, str] = {
+    "rod_friction_asymmetric": "rod_friction",
+    "seal_friction_pressure": "rod_friction",
+    "gas_release": "gas_content",
+}
+
 # Parameters of the optional effects (design key ``effect_parameters:``),
 # "<effect>.<name>" -> (SI unit, physical range). Not numbered: the 105
 # parameters of table 5.1 stay 105.

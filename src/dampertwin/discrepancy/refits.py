@@ -69,10 +69,14 @@ def _on_effect_params(design: Design, have: set) -> list[ParamSpec]:
 
 
 def _lacking(design: Design) -> tuple[str, ...]:
-    """Effects of parts the design's architecture has no part for (a passive damper's active-valve effects)."""
+    """Effects of parts the design's architecture has no part for (a passive damper's active-valve effects),
+    and effects that modify an effect the design has off (schema.EFFECT_NEEDS: e.g. seal_friction_pressure
+    without rod_friction): as candidates they would do nothing."""
     from ..design.architecture import ACTIVE_VALVE_EFFECTS
+    from ..design.schema import EFFECT_NEEDS
 
-    return ACTIVE_VALVE_EFFECTS if design.pq_map is None else ()
+    lacking = ACTIVE_VALVE_EFFECTS if design.pq_map is None else ()
+    return lacking + tuple(e for e, need in EFFECT_NEEDS.items() if not design.effects.get(need, False))
 
 
 def catalogue(design: Design, cfg: dict) -> list[Candidate]:

@@ -32,7 +32,8 @@ Henry law of its own) to the compression chamber, so even static it softens
 that chamber; this one adds no gas (the calibrated oil.chi, P_sat, P_vap
 keep their meaning and their static law) and only delays the existing gas
 in all three chambers: stiffer in fast cycles, with a memory of low-pressure
-phases. With gas_content off (or chi = 0) it does nothing. Three states, in
+phases. With chi = 0 it does nothing (with gas_content off a design is refused:
+schema.EFFECT_NEEDS). Three states, in
 the extended configurations only (layout.variant).
 """
 

@@ -20,7 +20,8 @@ compression, switched smoothly over the named regularisation velocity v_reg
 4 (1998) 176-195, sec. 3.6). While sliding the added force is
 a [(F_s - F_c) exp(-(|v|/a_s)^alpha_s) + s2 |v|], even in v and growing with
 the speed: no offset, no symmetric friction level reproduces it.
-Acts only with the rod_friction effect on.
+Acts only with the rod_friction effect on (a design switching it on without
+rod_friction is refused: schema.EFFECT_NEEDS).
 """
 
 from __future__ import annotations

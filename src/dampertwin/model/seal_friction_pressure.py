@@ -7,7 +7,8 @@ dF = k_p r(P_r - P_atm) [N], k_p = mu pi D_R L_contact [N/Pa]
 (reciprocating seal friction proportional to the sealed pressure: Mueller &
 Nau, Fluid Sealing Technology, 1998, ch. 9), r the smooth ramp
 (u + sqrt(u^2 + p_reg^2)) / 2 with the named regularisation p_reg [Pa].
-Acts only with the rod_friction effect on.
+Acts only with the rod_friction effect on (a design switching it on without
+rod_friction is refused: schema.EFFECT_NEEDS).
 """
 
 from __future__ import annotations

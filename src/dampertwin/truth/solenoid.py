@@ -4,7 +4,8 @@ Driver: a PI current loop (gains KP [V/A], KI [V/(A s)]) whose output
 voltage saturates smoothly at the supply U_MAX; its closed-loop bandwidth
 is finite (~ (R + KP) / (2 pi L)). Coil: L di/dt = u - R i (an R-L
 circuit). Switched off (effect ``current_driver``), an ideal current
-source: the current is the command, no driver or coil dynamics. Magnetic force: F = F_S r^2 / sqrt(1 + r^2), r = i / I_S: square
+source: the current is the command, no driver or coil dynamics.
+Magnetic force: F = F_S r^2 / sqrt(1 + r^2), r = i / I_S: square
 law while the iron is unsaturated, linear (the proportional-solenoid
 range) once it saturates (Vaughan & Gamble, ASME J. Dyn. Syst. Meas. Control
 118 (1996) 705; Manring, Hydraulic Control Systems, 2005, 6.2). Pilot: a
