@@ -270,6 +270,23 @@ def test_a_non_numeric_cell_is_named_with_its_row(tmp_path, capsys):
     assert "1 non-numeric values (the first, data row 7: an empty cell" in _err(capsys)
 
 
+def test_a_text_cell_in_a_decimal_comma_export_is_named_not_the_first_number(tmp_path, capsys):
+    """The shipped rig export (';' and decimal commas, csv: {decimal: ','}) with one text cell: pandas then
+    leaves the whole column as text; the error names that cell and its row, not the column's first number."""
+    from pathlib import Path
+
+    ex = Path(__file__).resolve().parents[1] / "examples"
+    lines = (ex / "rig_monosine.csv").read_text().splitlines()
+    cells = lines[501].split(";")
+    cells[2] = "abc"  # Kraft, data row 501
+    lines[501] = ";".join(cells)
+    src = tmp_path / "rig.csv"
+    src.write_text("\n".join(lines) + "\n")
+    assert main(["import", str(src), "--map", str(ex / "mapping.yaml"), "--out", str(tmp_path / "o.parquet")]) == 2
+    err = _err(capsys)
+    assert "column 'Kraft': 1 non-numeric values (the first, data row 501: 'abc'" in err, err
+
+
 @pytest.mark.parametrize("cell, hint", [("12,5", "a decimal comma needs csv: {decimal: ','}"),
                                         ("-1.234,5e-3", "a decimal comma"),
                                         ("end of record", "a text line in the data"),

@@ -270,3 +270,19 @@ def test_cli_import_and_kpi_of_the_shipped_example(tmp_path, capsys):
     assert k["oil temperature end [K]"] > k["oil temperature start [K]"] > 273.15 + 23.0
     assert main(["kpi", "dyno", str(out), "--velocities", "fast"]) == 2
     assert "--velocities 'fast'" in capsys.readouterr().err
+
+
+def test_kpi_refuses_more_cycles_than_a_step_has_and_an_empty_speed(tmp_path, capsys):
+    """--cycles above the half-strokes a step holds would silently average all of them, the run-in one too;
+    an empty item in --velocities would silently drop a speed: both exit 2 naming what was expected."""
+    out = tmp_path / "passive.parquet"
+    assert main(["import", "--map", str(ROOT / "examples" / "dyno_mapping.yaml"),
+                 str(ROOT / "examples" / "dyno_export.csv"), "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["kpi", "dyno", str(out), "--cycles", "2"]) == 0
+    capsys.readouterr()
+    assert main(["kpi", "dyno", str(out), "--cycles", "1000"]) == 2
+    err = capsys.readouterr().err
+    assert "cycles 1000: the speed step at" in err and "half-strokes; expected at most" in err, err
+    assert main(["kpi", "dyno", str(out), "--velocities", "0.1,,0.2"]) == 2
+    assert "--velocities '0.1,,0.2'" in capsys.readouterr().err

@@ -218,6 +218,24 @@ def test_map_header_content_is_not_echoed(tmp_path):
     assert "TOPSECRET" not in msg
 
 
+def test_map_with_a_byte_order_mark_loads_and_a_folder_or_flipped_flow_is_named(tmp_path):
+    """A spreadsheet's UTF-8 export starts with a byte-order mark: the map loads as without it. A folder
+    where the map should be, and a flow column of the wrong sign, are named as such."""
+    src = (CONF / "design" / "active_valve_baseline.csv").read_text()
+    doc = base_doc()
+    entry(doc, 52)["value"] = "bom.csv"
+    (tmp_path / "bom.csv").write_text("\ufeff" + src, encoding="utf-8")
+    load(write_design(tmp_path, doc))
+    entry(doc, 52)["value"] = "folder.csv"
+    (tmp_path / "folder.csv").mkdir()
+    design_rejected(write_design(tmp_path, doc), "folder.csv' is a folder; expected a CSV file")
+    lines = src.strip().splitlines()
+    flipped = [lines[0]] + [",".join(r.split(",")[:2] + [str(-float(r.split(",")[2]))]) for r in lines[1:]]
+    entry(doc, 52)["value"] = "flipped.csv"
+    (tmp_path / "flipped.csv").write_text("\n".join(flipped) + "\n")
+    design_rejected(write_design(tmp_path, doc), "the flow must be positive for dp > 0 (sign flipped?)")
+
+
 def test_map_in_an_explicitly_allowed_folder_loads(tmp_path):
     out = load(BASELINE).dump(tmp_path / "elsewhere" / "d.yaml")
     design_rejected(out, "outside the design's folder")

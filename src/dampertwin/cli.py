@@ -358,7 +358,7 @@ def _run_kpi(args) -> int:
     ref = None
     if args.velocities is not None:
         try:
-            ref = [float(v) for v in args.velocities.split(",") if v.strip()]
+            ref = [float(v) for v in args.velocities.split(",")]
         except ValueError:
             raise UserError(f"--velocities {args.velocities!r}: expected comma-separated speeds in m/s") from None
         if not ref or not all(v > 0 and v < float("inf") for v in ref):

@@ -47,6 +47,8 @@ import numpy as np
 import pandas as pd
 from scipy.signal import savgol_filter
 
+from .errors import UserError
+
 T, X, F, TEMP = "time [s]", "displacement [m]", "force [N]", "oil temperature [K]"
 REVERSAL = 0.05   # a reversal: the displacement turned back by this fraction of its peak-to-peak range
 STEP_TOL = 0.1    # a half-stroke whose speed differs from its step's median by more starts a new step
@@ -132,6 +134,10 @@ def _used(g: pd.DataFrame, cycles: int | None) -> pd.DataFrame | None:
         d = g[g["direction"] == s]
         if len(d) < 2:
             return None
+        if cycles is not None and cycles > len(d):
+            raise UserError(f"cycles {cycles}: the speed step at {float(d['velocity [m/s]'].abs().mean()):.3g} m/s "
+                            f"has only {len(d)} {DIRECTIONS[s]} half-strokes; expected at most the fewest half-strokes "
+                            f"per direction of any step (or no cycles: all but the run-in one)")
         keep.append(d.iloc[1:] if cycles is None else d.iloc[-cycles:])
     return pd.concat(keep).sort_index()
 

@@ -169,6 +169,22 @@ def _number(v, where: str) -> float:
     return float(v)
 
 
+def _numeric(col: pd.Series, csv_kw) -> pd.Series:
+    """A column as numbers (NaN where a cell is not one). A text cell keeps pandas from applying the
+    mapping's csv ``decimal`` / ``thousands`` to its column: they are applied here, so the cell named
+    is the text cell, not the column's first number."""
+    raw = pd.to_numeric(col, errors="coerce")
+    kw = csv_kw if isinstance(csv_kw, dict) else {}
+    if raw.isna().any() and not pd.api.types.is_numeric_dtype(col) and (kw.get("decimal") or kw.get("thousands")):
+        text = col.astype(str).str.strip()
+        if kw.get("thousands"):
+            text = text.str.replace(str(kw["thousands"]), "", regex=False)
+        if kw.get("decimal"):
+            text = text.str.replace(str(kw["decimal"]), ".", regex=False)
+        raw = pd.to_numeric(text.where(col.notna()), errors="coerce")
+    return raw
+
+
 def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.DataFrame:
     """Apply a column mapping (see module docstring) to a frame: the result
     has only the mapped columns, in SI, named ``quantity [SI unit]``."""
@@ -199,7 +215,7 @@ def convert(df: pd.DataFrame, mapping: dict, *, where: str = "source") -> pd.Dat
             out["time [s]"], stamps = parse_stamps(df[name], label, spec.get("format"))
             stamp_label = label
             continue
-        raw = pd.to_numeric(df[name], errors="coerce")
+        raw = _numeric(df[name], mapping.get("csv"))
         if raw.isna().any():
             i = int(np.argmax(raw.isna().to_numpy()))
             bad = df[name].iloc[i]

@@ -80,12 +80,13 @@ def _find_map(name: str, base_dir: Path, folders) -> Path:
 def _read_map(path: Path, label: str, errors: list[str]) -> PQMap | None:
     """Read and check the active-valve P/Q map CSV (tidy: current, dp, flow)."""
     if not path.is_file():
-        errors.append(f"{label}: P/Q map file {str(path)!r} not found")
+        errors.append(f"{label}: P/Q map file {str(path)!r} " + ("is a folder; expected a CSV file" if path.is_dir()
+                                                                 else "not found"))
         return None
     n0 = len(errors)
     # never echo the file's content: a wrong path may point at anything
     try:
-        text = read_config_text(path)
+        text = read_config_text(path).removeprefix("\ufeff")  # a UTF-8 byte-order mark (spreadsheet export)
         rows = list(csv.reader(io.StringIO(text)))
     except (ConfigTextError, csv.Error) as e:
         msg = str(e).split(": ", 1)[-1] if isinstance(e, ConfigTextError) else "not a CSV file"
@@ -133,9 +134,11 @@ def map_from_rows(arr: np.ndarray, label: str, path: str, errors: list[str]) -> 
         return None
     if np.any(flow[:, 0] != 0.0):
         errors.append(f"{label}: P/Q map {str(path)!r}: flow at dp = 0 must be 0")
+    top_flow = float(np.max(flow))
+    flow_hint = "values in l/min?" if top_flow > 0 else "the flow must be positive for dp > 0 (sign flipped?)"
     for col, top, (lo, hi), hint in (("current [A]", currents[-1], MAP_RANGE["current"], "values in mA?"),
                                      ("dp [Pa]", dps[-1], MAP_RANGE["dp"], "values in bar (or MPa)?"),
-                                     ("flow [m^3/s]", float(np.max(flow)), MAP_RANGE["flow"], "values in l/min?")):
+                                     ("flow [m^3/s]", top_flow, MAP_RANGE["flow"], flow_hint)):
         if not lo <= top <= hi:
             errors.append(f"{label}: P/Q map {str(path)!r}: column {col!r} reaches {top:.4g}, outside the "
                           f"{lo:g} .. {hi:g} of a passenger-car damper valve's map: {hint}")
