@@ -456,6 +456,21 @@ def test_a_compliance_current_against_the_records_is_refused_before_the_fit(tmp_
     assert "run 'I1.6': recorded at 1.6 A; --current 0.32 A" in _err(capsys) and not (out / "fit.json").exists()
 
 
+def test_a_fit_that_misses_its_record_by_more_than_its_range_is_flagged(tmp_path, capsys):
+    """The force column 100x too small (an 8 N 'damper', above the readers' 1 N floor): the GA still ends
+    somewhere, but the fit's NRMSE exceeds the record's whole range and the command says so; the record as
+    recorded is not flagged."""
+    from test_reliability_io import mono
+    rec = mono(T=0.5)
+    for k, tag in ((1.0, "ok"), (1e-2, "scaled")):
+        data = write_frame(tmp_path / f"{tag}.parquet", rec.assign(**{"force [N]": k * rec["force [N]"]}),
+                           {"synthetic": True})
+        assert main(["fit", "compliance", "--data", str(data), "--current", "1.6", "--population", "4",
+                     "--generations", "1", "--out", str(tmp_path / tag)]) == 0
+        err = capsys.readouterr().err
+        assert ("misses the fitted record by more than its measured range" in err) == (tag == "scaled"), err
+
+
 def _csv_source(tmp_path):
     src = tmp_path / "s.csv"
     df = device().drop(columns="velocity [m/s]").rename(columns={"time [s]": "t", "displacement [m]": "x",

@@ -153,6 +153,18 @@ def _fit_model(problem: RecordProblem, specs, label: str, submodel: str, setting
     return report(problem, res, specs, ci, submodel, settings, seed, extra_meta, fixed_overrides)
 
 
+# NRMSE above which a fit is a miss, not a poor fit: the RMS error exceeds the record's whole measured range
+# (real records fit to 0.02-0.3 in docs/validation; a kN column read as N gave 183)
+MISS_NRMSE = 1.0
+
+
+def _miss_flags(files: dict) -> list[str]:
+    """A flag per file the optimum misses by more than its measured range (or cannot simulate)."""
+    return [f"{path}: NRMSE {f['nrmse']:.3g} at the optimum: the model misses the {f['role']} record by more than "
+            f"its measured range; check the record's units (e.g. kN read as N) and test" for path, f in files.items()
+            if not f["nrmse"] <= MISS_NRMSE]
+
+
 def report(problem: RecordProblem, res, specs, ci: dict, submodel: str, settings, seed, extra_meta: dict,
            fixed_overrides: dict | None = None):
     """(fit.json dict, problem, simulations at the optimum) of a GA fit:
@@ -176,7 +188,7 @@ def report(problem: RecordProblem, res, specs, ci: dict, submodel: str, settings
                                                           if not k.startswith("sensor.")}},
               "bounds": {s.key: [s.lo, s.hi, s.scale] for s in specs}, "bound_hits": hits,
               "flags": [f"{h['parameter']} = {h['value']:.6g} ended on its {h['bound']} search bound "
-                        f"{h['limit']:.6g}: the optimum may lie beyond it" for h in hits],
+                        f"{h['limit']:.6g}: the optimum may lie beyond it" for h in hits] + _miss_flags(files),
               "uncertainty": ci, "files": files, "nrmse": files[str(problem.files[0][0])]["nrmse"],
               "optimizer": f"GA (pygad) population {settings.population}, {settings.generations} generations, "
                            f"seed {seed}" + (", least-squares polish" if res.polish else "")}
