@@ -76,6 +76,14 @@ def test_device_record_refused_naming_the_column(tmp_path, make, needles):
     ("valve", "bench: {bench_volume: -1}\n", "bench: expected bench_volume"),
     ("valve", "ga: {populaton: 4}\n", "unknown key(s) populaton"),
     ("valve", "ga: {population: 0}\n", "population 0; expected an integer >= 2"),
+    ("valve", "ga: {mutation_probability: abc}\n", "ga.mutation_probability 'abc'; expected the probability a "
+                                                   "gene mutates [%] in (0, 100]"),
+    ("valve", "ga: {mutation_probability: 500}\n", "ga.mutation_probability 500; expected"),
+    ("valve", "ga: {reproduction_ratio: abc}\n", "ga.reproduction_ratio 'abc'; expected the share of the "
+                                                 "population mating [%] in (0, 100]"),
+    ("valve", "ga: {reproduction_ratio: -50, population: 4, generations: 1}\n", "ga.reproduction_ratio -50;"),
+    ("valve", "ga: {elitism: -1}\n", "ga.elitism -1; expected an integer 0 <= elitism < population (20)"),
+    ("valve", "ga: {elitism: 100}\n", "ga.elitism 100; expected an integer 0 <= elitism < population (20)"),
     ("valve", "parameters:\n  - {name: a, bounds: [50, .inf]}\n", "two finite numbers"),
     ("valve", "parameters:\n  - {name: a, window: [2, 0.5]}\n", "f_lo < f_hi"),
     ("valve", "parameters:\n  - {key: piston_intake.a, bounds: [50, 500]}\n  - {name: a, bounds: [60, 600]}\n",
@@ -109,6 +117,21 @@ def test_bounds_file_errors_are_one_line_before_any_fit(tmp_path, capsys, submod
     assert main([*argv, "--bounds", str(b), "--out", str(out)]) == 2
     assert needle in _err(capsys)
     assert not (out / "fit.json").exists()
+
+
+@pytest.mark.parametrize("bad", [{"mutation_probability": True}, {"mutation_probability": 0},
+                                 {"reproduction_ratio": 101}, {"reproduction_ratio": float("nan")},
+                                 {"elitism": 4}, {"elitism": 1.0}])
+def test_ga_settings_name_their_source_and_key(bad):
+    """Each GA setting checked for type and range, the error naming the source given (the file) and ga.<key>."""
+    from dampertwin.calibration.ga import GASettings
+    from dampertwin.errors import UserError
+
+    c = {"population": 4, "reproduction_ratio": 80, "generations": 1, "mutation_probability": 10,
+         "max_wall_s": 10, **bad}
+    with pytest.raises(UserError, match=rf"^b\.yaml: ga\.{next(iter(bad))} .*; expected .*(\(0, 100\]|< population)"):
+        GASettings.from_config(c, where="b.yaml")
+    assert GASettings.from_config({**c, **{k: 3 for k in bad}}, where="b.yaml")  # a value in range passes
 
 
 def test_a_fixed_friction_parameter_leaves_the_default_search(tmp_path):
@@ -454,6 +477,13 @@ def test_a_compliance_current_against_the_records_is_refused_before_the_fit(tmp_
     assert main(["fit", "compliance", "--data", str(data), "--current", "0.32", "--population", "4",
                  "--generations", "1", "--out", str(out)]) == 2
     assert "run 'I1.6': recorded at 1.6 A; --current 0.32 A" in _err(capsys) and not (out / "fit.json").exists()
+
+
+def test_a_mapping_that_is_a_folder_is_named_as_one(tmp_path, capsys):
+    src = _csv_source(tmp_path)
+    (tmp_path / "m.yaml").mkdir()
+    assert main(["import", str(src), "--map", str(tmp_path / "m.yaml"), "--out", str(tmp_path / "o.parquet")]) == 2
+    assert "m.yaml: is a folder; expected a mapping YAML file" in _err(capsys)
 
 
 def test_a_fit_that_misses_its_record_by_more_than_its_range_is_flagged(tmp_path, capsys):

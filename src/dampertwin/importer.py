@@ -403,7 +403,8 @@ def import_measurement(src: str | os.PathLike, mapping: dict | str | os.PathLike
     if not isinstance(mapping, dict):
         map_where = str(mapping)
         if not Path(mapping).is_file():
-            raise MappingError(f"{map_where}: file not found")
+            raise MappingError(f"{map_where}: " + ("is a folder; expected a mapping YAML file" if Path(mapping).is_dir()
+                                                   else "file not found"))
         try:
             mapping = yaml_load_file(mapping)  # duplicate keys, bad YAML: one line naming file and line
         except ConfigTextError as e:
