@@ -96,6 +96,43 @@ def test_a_bound_the_optimum_lies_beyond_is_reported(tmp_path, capsys):
     assert "k_b" in capsys.readouterr().err
 
 
+SHAPE = "expected [low, high], two finite numbers, low < high"
+
+
+@pytest.mark.parametrize("item, param, needle", [
+    ("{name: F_c, bounds: [0, abc]}", None, f"item 0 (F_c): bad interval [0, 'abc']; {SHAPE}"),
+    ("{name: F_c, bounds: [0, 1, 2]}", None, f"item 0 (F_c): bad interval [0, 1, 2]; {SHAPE}"),
+    ("{name: F_c, bounds: 5}", None, f"item 0 (F_c): bad interval 5; {SHAPE}"),
+    ("{name: F_c, bounds: [0, .inf]}", None, SHAPE),
+    ("{name: F_c, bounds: [-100, -1]}", "F_c=-100:-1",
+     "item 0 (F_c): bounds [-100, -1] outside the physical range of F_c, the Coulomb friction force [N]: "
+     "expected within [0, inf)"),
+    ("{name: F_s, bounds: [-5, 50]}", "F_s=-5:50", "physical range of F_s, the static friction force [N]"),
+    ("{name: k_b, bounds: [0, 1.0e6]}", "k_b=0:1e6", "physical range of k_b, the bristle stiffness [N/m]: "
+                                                     "expected within (0, inf)"),
+    ("{name: s2, bounds: [-10, 100]}", "s2=-10:100", "physical range of s2"),
+    ("{name: a_s, bounds: [0, 0.1]}", "a_s=0:0.1", "physical range of a_s"),
+    ("{name: a, bounds: [-1, 0.5]}", "a=-1:0.5", "physical range of a, the direction factor [-]: expected within "
+                                                 "(-1, 1)"),
+], ids=["abc", "three", "scalar", "inf", "negative F_c", "negative F_s", "zero k_b", "negative s2", "zero a_s",
+        "a -1"])
+def test_bad_or_unphysical_bounds_are_one_line_naming_source_and_item(tmp_path, capsys, item, param, needle):
+    """A --bounds item (and the same bounds by --param) that is not [low, high] or leaves the parameter's
+    physical range: exit 2, one line naming the file / option, the item and what was expected; no fit."""
+    rec = synthetic(tmp_path / "rec.parquet")
+    b = tmp_path / "b.yaml"
+    b.write_text(f"parameters:\n  - {item}\n")
+    out = tmp_path / "o"
+    for src, argv in ((str(b), ["--bounds", str(b)]), ("--param", ["--param", param] if param else None)):
+        if argv is None:
+            continue
+        assert main(["fit", "friction", "--data", str(rec), "--out", str(out), *argv]) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+        assert f"{src}: " in err and needle in err, err
+    assert not out.exists()
+
+
 def test_a_data_derived_bound_is_widened_until_it_holds_the_optimum():
     t, x, v = _motion(cycles=3)
     F = simulate_friction(t, v, **LAW)

@@ -124,8 +124,47 @@ def data_bounds(F: np.ndarray, x: np.ndarray | None, v: np.ndarray, dt: float, e
 PHYSICAL_ENDS = {("F_c", 0), ("F_s", 0), ("s2", 0), ("delta", 0), ("a", 0), ("a", 1)}
 
 
+# the physical range of each parameter (low, high, low included, what it is): a user bound outside it is refused
+PHYSICAL_RANGE = {"F_c": (0.0, None, True, "Coulomb friction force [N]"),
+                  "F_s": (0.0, None, True, "static friction force [N]"),
+                  "k_b": (0.0, None, False, "bristle stiffness [N/m]"),
+                  "s2": (0.0, None, True, "viscous coefficient [N*s/m]"),
+                  "c_comp": (0.0, None, True, "bristle damping [N*s/m]"),
+                  "vd": (0.0, None, False, "damping velocity [m/s]"),
+                  "a_s": (0.0, None, False, "Stribeck velocity [m/s]"),
+                  "alpha_s": (0.0, None, False, "Stribeck exponent [-]"),
+                  "a": (-1.0, 1.0, False, "direction factor [-]"),
+                  "v_reg": (0.0, None, False, "switching velocity [m/s]"),
+                  "delta": (0.0, None, True, "free play [m]")}
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_)) \
+        and bool(np.isfinite(x))
+
+
+def _item_interval(it: dict, label: str) -> tuple[float, float, str]:
+    """An item's (low, high, scale), checked for shape, scale and the
+    parameter's physical range; ``label``: 'WHERE: item I (NAME)'."""
+    nm, b, scale = label.rsplit("(", 1)[1].rstrip(")"), it["bounds"], it.get("scale", "lin")
+    if not (isinstance(b, (list, tuple)) and len(b) == 2 and all(map(_finite, b)) and b[0] < b[1]):
+        raise FrictionFitError(f"{label}: bad interval {b!r}; expected [low, high], two finite numbers, low < high")
+    lo, hi = float(b[0]), float(b[1])
+    if scale not in ("lin", "log"):
+        raise FrictionFitError(f"{label}: scale {scale!r}; expected lin or log")
+    if scale == "log" and lo <= 0:
+        raise FrictionFitError(f"{label}: bad interval [{lo:g}, {hi:g}] for scale log; expected 0 < low < high")
+    pl, ph, closed, what = PHYSICAL_RANGE[nm]
+    if (lo < pl if closed else lo <= pl) or (ph is not None and hi >= ph):
+        rng = f"{'[' if closed else '('}{pl:g}, {'inf' if ph is None else f'{ph:g}'})"
+        raise FrictionFitError(f"{label}: bounds [{lo:g}, {hi:g}] outside the physical range of {nm}, the {what}: "
+                               f"expected within {rng}")
+    return lo, hi, scale
+
+
 def specs_of(items: list, where: str) -> tuple[list[ParamSpec], list[str]]:
-    """Parameter specs and each one's origin ('data' or 'user')."""
+    """Parameter specs and each one's origin ('data' or 'user'); a bad item
+    is a FrictionFitError naming ``where``, the item and what was expected."""
     specs, origin = [], []
     for i, it in enumerate(items):
         nm = it.get("name", it.get("key")) if isinstance(it, dict) else None
@@ -135,12 +174,7 @@ def specs_of(items: list, where: str) -> tuple[list[ParamSpec], list[str]]:
                                    f"{', '.join(ALL_PARAMS)}")
         if "bounds" not in it:
             raise FrictionFitError(f"{where}: item {i} ({nm}): friction fits need absolute 'bounds: [lo, hi]'")
-        lo, hi = map(float, it["bounds"])
-        scale = it.get("scale", "lin")
-        if not lo < hi or (scale == "log" and lo <= 0) or scale not in ("lin", "log"):
-            raise FrictionFitError(f"{where}: item {i} ({nm}): bad interval [{lo}, {hi}] for scale {scale}")
-        if nm == "a" and not (-1 < lo and hi < 1):
-            raise FrictionFitError(f"{where}: item {i} (a): bounds must lie inside (-1, 1)")
+        lo, hi, scale = _item_interval(it, f"{where}: item {i} ({nm})")
         specs.append(ParamSpec(nm, lo, hi, scale))
         origin.append(it.get("origin", "user"))
     return specs, origin

@@ -121,30 +121,49 @@ class GASettings:
     stall_tol: float = 0.0
 
     @classmethod
-    def from_config(cls, c) -> "GASettings":
+    def from_config(cls, c, where: str = "GA settings") -> "GASettings":
+        """Settings from a mapping (a profile's or a --bounds file's ``ga:``
+        over the defaults); every key checked for type and range before any
+        simulation: a UserError naming ``where`` (the file), ``ga.<key>``
+        and what was expected."""
         unknown = set(c) - GA_KEYS
         if unknown:
-            raise UserError(f"GA settings {dict(c)}: unknown key(s) {', '.join(sorted(map(str, unknown)))}; expected "
+            raise UserError(f"{where}: ga: unknown key(s) {', '.join(sorted(map(str, unknown)))}; expected "
                             f"{', '.join(sorted(GA_KEYS))}")
+
+        def bad(key: str, expected: str) -> UserError:
+            return UserError(f"{where}: ga.{key} {c.get(key)!r}; expected {expected}")
+
+        def integer(v) -> bool:
+            return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+
+        def number(v) -> bool:
+            return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) \
+                and math.isfinite(v)
+
         for key in ("population", "generations"):
-            v = c.get(key)
-            if isinstance(v, bool) or not isinstance(v, int) or v < (2 if key == "population" else 1):
-                raise UserError(f"GA settings {dict(c)}: {key} {v!r}; expected an integer >= "
-                                f"{2 if key == 'population' else 1}")
+            if not integer(c.get(key)) or c[key] < (2 if key == "population" else 1):
+                raise bad(key, f"an integer >= {2 if key == 'population' else 1}")
+        pop = int(c["population"])
+        for key, what in (("reproduction_ratio", "the share of the population mating [%]"),
+                          ("mutation_probability", "the probability a gene mutates [%]")):
+            if not number(c.get(key)) or not 0 < c[key] <= 100:
+                raise bad(key, f"{what} in (0, 100]")
+        el = c.get("elitism", 1)
+        if not integer(el) or not 0 <= el < pop:
+            raise bad("elitism", f"an integer 0 <= elitism < population ({pop}): the best members kept")
         wall = c.get("max_wall_s")
-        if wall is None or isinstance(wall, bool) or not isinstance(wall, (int, float)) or not wall > 0:
-            raise UserError(f"GA settings {dict(c)}: max_wall_s {wall!r}; expected a positive wall-time cap [s] "
-                            f"for one population's simulations (conf/profile/*.yaml)")
+        if not number(wall) or not wall > 0:
+            raise bad("max_wall_s", "a positive wall-time cap [s] for one population's simulations "
+                                    "(conf/profile/*.yaml)")
         k, tol = c.get("stall_generations"), c.get("stall_tol", 0.0)
-        if k is not None and (isinstance(k, bool) or not isinstance(k, int) or k < 1):
-            raise UserError(f"GA settings {dict(c)}: stall_generations {k!r}; expected a positive integer "
-                            f"(generations without gain before the GA stops) or null (conf/profile/*.yaml)")
-        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < 1:
-            raise UserError(f"GA settings {dict(c)}: stall_tol {tol!r}; expected a relative gain in [0, 1) "
-                            f"(conf/profile/*.yaml)")
-        return cls(int(c["population"]), float(c["reproduction_ratio"]), int(c["generations"]),
-                   float(c["mutation_probability"]), int(c.get("elitism", 1)),
-                   None if wall is None else float(wall), k, float(tol))
+        if k is not None and (not integer(k) or k < 1):
+            raise bad("stall_generations", "a positive integer (generations without gain before the GA stops) "
+                                           "or null (conf/profile/*.yaml)")
+        if not number(tol) or not 0 <= tol < 1:
+            raise bad("stall_tol", "a relative gain in [0, 1) (conf/profile/*.yaml)")
+        return cls(pop, float(c["reproduction_ratio"]), int(c["generations"]), float(c["mutation_probability"]),
+                   int(el), float(wall), None if k is None else int(k), float(tol))
 
     def converged(self, best: list[float]) -> bool:
         """True when the best objective per generation so far (``best``,
