@@ -115,7 +115,10 @@ def test_bounds_file_errors_are_one_line_before_any_fit(tmp_path, capsys, submod
             argv += ["--population", "4", "--generations", "1"]
     out = tmp_path / "o"
     assert main([*argv, "--bounds", str(b), "--out", str(out)]) == 2
-    assert needle in _err(capsys)
+    err = _err(capsys)
+    assert needle in err
+    if needle.startswith("ga."):  # a GA setting's error names the --bounds file it came from
+        assert f"{b}: ga." in err, err
     assert not (out / "fit.json").exists()
 
 
@@ -477,6 +480,25 @@ def test_a_compliance_current_against_the_records_is_refused_before_the_fit(tmp_
     assert main(["fit", "compliance", "--data", str(data), "--current", "0.32", "--population", "4",
                  "--generations", "1", "--out", str(out)]) == 2
     assert "run 'I1.6': recorded at 1.6 A; --current 0.32 A" in _err(capsys) and not (out / "fit.json").exists()
+
+
+def test_a_late_text_cell_in_a_large_csv_is_one_line(tmp_path, capsys):
+    """pandas reads a large CSV in chunks and warns (DtypeWarning, two lines) when a late chunk changes a
+    column's type; the reader infers over the whole file, so only its own one-line error is printed."""
+    n = 300_000
+    t = np.arange(n) / 5000.0
+    df = pd.DataFrame({"run": "passive", "time [s]": t, "displacement [m]": 0.01 * np.sin(2 * np.pi * 13 * t),
+                       "force [N]": (1000 * np.sin(2 * np.pi * 13 * t + 0.3)).astype(object)})
+    df.loc[250_000, "force [N]"] = "abc"
+    src = tmp_path / "big.csv"
+    df.to_csv(src, index=False)
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["kpi", "dyno", str(src)]) == 2
+    assert "column 'force [N]' is not numeric" in _err(capsys)  # _err: exactly one line
+    assert not [w for w in caught if issubclass(w.category, pd.errors.DtypeWarning)], caught
 
 
 def test_a_mapping_that_is_a_folder_is_named_as_one(tmp_path, capsys):

@@ -11,7 +11,8 @@ from pathlib import Path
 
 from .design import yaml_load
 from .calibration.ga import FitError
-from .cli_fit_files import fit_active_valve, fit_compliance, fit_damper, fit_friction, fit_topmount, fit_valve
+from .cli_fit_files import (fit_active_valve, fit_compliance, fit_damper, fit_friction, fit_outputs, fit_topmount,
+                            fit_valve)
 
 
 def parse_param_args(items: list[str]) -> list[dict]:
@@ -213,11 +214,17 @@ def _fit_active_valve(args) -> list[str]:
 def run_fit_cli(args) -> tuple[Path, list[str]]:
     """``dampertwin fit`` entry: returns the written fit.json path and the
     fit's flags (parameters on a bound, unsupported effects)."""
+    from .io import check_targets
+
+    data = [p for p in args.data.split(",") if p] if args.submodel == "damper" else [args.data]
+    check_targets(fit_outputs(args.submodel, args.out, [*data, *(args.predict or [])]), "--out")  # before any work
     if args.submodel == "active-valve":
         return Path(args.out) / "fit.json", _fit_active_valve(args)
     cfg = load_search_config(args.bounds, args.submodel)
     if args.bounds:
         cfg["_where"] = str(args.bounds)
+        if "ga" in cfg:
+            cfg["_ga_where"] = str(args.bounds)
     if getattr(args, "profile", None):
         if args.submodel == "friction":
             raise FitError("--profile sets GA and polish budgets: valve, compliance and topmount fits only")
@@ -226,7 +233,8 @@ def run_fit_cli(args) -> tuple[Path, list[str]]:
         if section not in prof["ga"]:
             raise FitError(f"--profile {args.profile}: the profile has no GA budget for a {args.submodel} fit; "
                            f"give --population / --generations")
-        cfg.setdefault("ga", prof["ga"][section])
+        if "ga" not in cfg:
+            cfg["ga"], cfg["_ga_where"] = prof["ga"][section], f"--profile {args.profile}"
         cfg.setdefault("polish", prof.get("polish"))
     prefix = {"valve": f"{args.valve or cfg.get('valve')}.", "topmount": "top_mount."}.get(args.submodel, "")
     items = _merge_items(cfg.get("parameters"), parse_param_args(args.param), prefix) or None

@@ -27,7 +27,7 @@ from .calibration.ga import FitError
 from .calibration.polish import PolishSettings
 from .design import Design, load as load_design, yaml_load
 from .fit_plots import friction_plots, series_plots
-from .io import json_safe
+from .io import atomic_files, check_targets, json_safe
 
 
 def _sha(path: Path) -> str:
@@ -35,11 +35,24 @@ def _sha(path: Path) -> str:
 
 
 def _write_json(path: Path, obj) -> Path:
+    check_targets([path])
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(json_safe(obj), indent=2, sort_keys=False, default=float, allow_nan=False) + "\n")
-    os.replace(tmp, path)
+    text = json.dumps(json_safe(obj), indent=2, sort_keys=False, default=float, allow_nan=False) + "\n"
+    with atomic_files([path]) as (tmp,):
+        tmp.write_text(text)
     return path
+
+
+ACTIVE_VALVE_OUTPUTS = ("fit.json", "design.yaml", "map.csv", "pq.png")  # fit_active_valve's files in OUT
+
+
+def fit_outputs(submodel: str, out, files) -> list[Path]:
+    """The files a fit of ``submodel`` on ``files`` (fitted, then predicted) writes in ``out``: fit.json and a
+    PNG per file (fit_plots: SUBMODEL_I_STEM.png), or the active-valve map's files."""
+    out = Path(out)
+    if submodel == "active-valve":
+        return [out / n for n in ACTIVE_VALVE_OUTPUTS]
+    return [out / "fit.json", *(out / f"{submodel}_{i}_{Path(f).stem}.png" for i, f in enumerate(files))]
 
 
 def read_fit_record(path, protocol=None, valve=None) -> pd.DataFrame:
@@ -64,6 +77,7 @@ def _with_shas(result: dict, out, plots=None) -> dict:
         entry["sha256"] = _sha(Path(p))
     if out is not None:
         out = Path(out)
+        check_targets([out / "fit.json"])  # a folder there: OutputError, nothing removed or written
         (out / "fit.json").unlink(missing_ok=True)
         out.mkdir(parents=True, exist_ok=True)
         if plots is not None:
@@ -318,8 +332,8 @@ def fit_active_valve(data, *, design=None, out=None) -> dict:
               "files": {str(path): {"role": "fitted", "runs": int(meas["run"].nunique()), "samples": len(meas)}}}
 
     if out is not None:  # a run killed while writing leaves no design.yaml naming another run's map
-        for name in ("fit.json", "design.yaml", "map.csv", "pq.png"):
-            (Path(out) / name).unlink(missing_ok=True)
+        for p in check_targets(fit_outputs("active-valve", out, [])):
+            p.unlink(missing_ok=True)
 
     def outputs(o: Path) -> None:
         write_map(o / "map.csv", built)

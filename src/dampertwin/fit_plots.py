@@ -4,20 +4,20 @@ force-velocity loops; GA fits: one panel per record)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
 from .calibration import friction_fit as _ff
 from .calibration.friction_fit import nrmse
+from .io import atomic_files
 
 
 def _save(fig, path: Path) -> None:
-    """The PNG written beside itself and renamed: a killed run leaves the old file or the new one."""
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.png")
-    fig.savefig(tmp, dpi=100)
-    os.replace(tmp, path)
+    """The PNG written beside itself and renamed: a killed run leaves the old file or the new one (a folder at
+    ``path``: OutputError, nothing written)."""
+    with atomic_files([path], ".png") as (tmp,):
+        fig.savefig(tmp, dpi=100)
 
 
 def friction_plots(out: Path, paths, recs, sims, result) -> None:

@@ -6,7 +6,6 @@ the design drawn and the measurement source."""
 
 from __future__ import annotations
 
-import os
 import re
 from pathlib import Path
 
@@ -14,11 +13,12 @@ import matplotlib.pyplot as plt
 
 from . import report
 from .design import load as load_design
-from .io import read_record, runs
+from .io import atomic_files, check_targets, read_record, runs
 from .protocols import build_runs, flow_bench, load_all
 from .variants import VALVE_DESIGNS, load_variant
 
 CURVING_VELOCITIES = (0.1, 0.3, 0.5, 1.0, 1.5)  # subset of the protocol, for speed
+PLOTS = ("pq", "curving", "monosine", "psd")  # the files OUT/CASE/NAME.png of a case (_draw's names)
 
 
 def _maybe(path: Path | None, protocol: str):
@@ -59,29 +59,26 @@ def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: 
         design = variant.apply(load_design(conf / "design" / "baseline.yaml"))
         dlabel = f"nominal design: {conf / 'design' / 'baseline.yaml'} + variant {case} ({design.hash()[:8]})"
     data = Path(data) if data is not None else None
+    out = out / case
+    check_targets([out / f"{name}.png" for name in PLOTS], "--out")  # before any work
     tag = f"\n{dlabel}; {_source_label(data)}"
     protocols = load_all(conf / "test")
-    out = out / case
     figures: list = []  # every figure drawn first, written at the end: a bad record leaves the old set whole
 
     def save(fig, name):
         figures.append((fig, name))
 
-    tmps: dict[Path, Path] = {}
     try:
         _draw(case, design, variant, data, tag, protocols, save)
         out.mkdir(parents=True, exist_ok=True)
-        for fig, name in figures:  # every file written before any replaces the old one
-            tmps[out / f"{name}.png"] = tmp = out / f".{name}.png.tmp{os.getpid()}"
-            fig.savefig(tmp, dpi=110, format="png")
-        for p, tmp in tmps.items():
-            os.replace(tmp, p)
-        return list(tmps)
+        paths = [out / f"{name}.png" for _, name in figures]
+        with atomic_files(paths, option="--out") as tmps:  # every file written before any replaces the old one
+            for (fig, _), tmp in zip(figures, tmps):
+                fig.savefig(tmp, dpi=110, format="png")
+        return paths
     finally:
         for fig, _ in figures:
             plt.close(fig)
-        for tmp in tmps.values():
-            tmp.unlink(missing_ok=True)
 
 
 def _draw(case: str, design, variant, data: Path | None, tag: str, protocols: dict, save) -> None:

@@ -15,7 +15,7 @@ import pandas as pd
 from . import __version__
 from .design import load as load_design
 from .errors import UserError
-from .io import write_frame
+from .io import atomic_files, check_targets, write_frame
 from .protocols import build_runs, flow_bench, load_protocol, passive_runs
 from .simulation import simulate
 
@@ -56,7 +56,27 @@ def runs_for_design(design, runs: list, test: str) -> list:
     return kept
 
 
-def _run_frame(design, run, protocol: dict) -> pd.DataFrame:
+# the protocol key that sets a run's displacement, named when a run's stroke exceeds the design's travel
+STROKE_KEY = {"training": "strokes", "random": "bands", "verification": "bands"}
+
+
+def check_travel(design, design_path: Path, runs: list, proto_path: Path, protocol: str) -> None:
+    """Each damper / module run's peak displacement from mid-stroke within the design's travel: below the
+    rebound chamber's length geometry.l_r0 and the compression chamber's geometry.l_c0 at mid-stroke (the
+    chamber volumes A (l - |s|) reach zero there: the piston would hit an end). UserError naming both files."""
+    travel = {k: float(design[k]) for k in ("geometry.l_r0", "geometry.l_c0")}
+    key, limit = min(travel.items(), key=lambda kv: kv[1])
+    for r in runs:
+        if r.configuration not in ("damper", "module") or r.excitation.kind != "displacement":
+            continue
+        peak = float(np.max(np.abs(r.excitation.value)))
+        if not peak < limit:
+            raise UserError(f"{proto_path}: {protocol}.{STROKE_KEY.get(protocol, 'amplitude')}: run {r.name} "
+                            f"moves the rod {peak:.4g} m from mid-stroke; design {design_path} has {limit:.4g} m of "
+                            f"travel ({key}); expected metres within the damper's stroke (mm written as m?)")
+
+
+def _run_frame(design, run, protocol: dict, where: str) -> pd.DataFrame:
     kw = {}
     if run.configuration == "valve":
         kw = {"bench_valve": run.bench_valve, "bench": flow_bench(protocol)}
@@ -67,6 +87,12 @@ def _run_frame(design, run, protocol: dict) -> pd.DataFrame:
         r = simulate(d, run.excitation, run.configuration, current=run.current, rate=run.rate, **kw)
     except ValueError as e:  # unusable parameters for this configuration
         raise UserError(str(e)) from None
+    bad = ~np.all([np.isfinite(np.asarray(v, float)) for v in r.channels.values()], axis=0)
+    if not r.ok or bad.any():  # never a result with NaN rows (as the lab: a stopped run is an error)
+        t = r.time[bad][0] if bad.any() else r.time[-1]
+        why = f"stopped early ({r.stats.message})" if not r.ok else "gave non-finite outputs"
+        raise UserError(f"{where}: run {run.name}: the simulation {why} at t = {t:.4g} s of {r.time[-1]:.4g} s; "
+                        f"nothing written (a protocol value or design parameter outside what the model can run?)")
     df = r.to_frame()
     df.insert(0, "run", run.name)
     return df
@@ -88,25 +114,27 @@ def simulate_test(design_path: str | Path, test: str, out: str | Path, *, case: 
     if test == "activevalve":
         raise UserError(f"--test {test}: the model's active valve is its P/Q map (design no. 52), not a valve to "
                         f"put on a bench; a record of the test builds the part's map (stage activevalve_map)")
+    targets = check_targets([out / f"{test}.parquet", out / f"{test}.png"], "--out")  # before any work
     design = load_design(design_path)
     protocol = load_protocol(proto_path)
-    frames = [_run_frame(design, r, protocol) for r in runs_for_design(design, select_runs(protocol, test, case, current),
-                                                                       test)]
+    runs = runs_for_design(design, select_runs(protocol, test, case, current), test)
+    check_travel(design, design_path, runs, proto_path, protocol["protocol"])
+    where = f"design {design_path}, test {test} ({proto_path})"
+    frames = [_run_frame(design, r, protocol, where) for r in runs]
     df = pd.concat(frames, ignore_index=True)
     meta = {"synthetic": True, "simulated": True, "design": str(design_path), "design_hash": design.hash(),
             "test": test, "runs": [f["run"].iloc[0] for f in frames], "dampertwin": __version__,
             **({"setting": design.setting} if design.adjusters else {}),  # the record names its clicks
             **({"architecture": design.architecture, "current_read": False} if design.pq_map is None else {})}
     out.mkdir(parents=True, exist_ok=True)
-    pq = write_frame(out / f"{test}.parquet", df, meta)
-    png = out / f"{test}.png"
-    _plot(frames, test, design_path, design.hash(), png)
-    return [pq, png]
+    with atomic_files(targets[:1]) as (tmp_pq,), atomic_files(targets[1:], ".png") as (tmp_png,):
+        write_frame(tmp_pq, df, meta)  # both files written before either replaces an earlier one
+        _plot(frames, test, design_path, design.hash(), tmp_png)
+    return targets
 
 
 def _plot(frames: list[pd.DataFrame], test: str, design_path: Path, design_hash: str, path: Path) -> None:
-    import os
-
+    """The main channel of each run against time, as a PNG at ``path`` (a temporary file of the caller's)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -122,10 +150,10 @@ def _plot(frames: list[pd.DataFrame], test: str, design_path: Path, design_hash:
     ax.set_title(f"simulated {test} test: {design_path.name} ({design_hash[:8]})", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(title="run", fontsize=7, ncol=max(1, len(frames) // 10))
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.png")
-    fig.savefig(tmp, dpi=100, metadata={"Software": None})
-    plt.close(fig)
-    os.replace(tmp, path)
+    try:
+        fig.savefig(path, dpi=100, format="png", metadata={"Software": None})
+    finally:
+        plt.close(fig)
 
 
 __all__ = ["simulate_test", "select_runs"]

@@ -203,7 +203,7 @@ def ga_settings(cfg: dict, population=None, generations=None) -> GASettings:
         ga["population"] = population
     if generations:
         ga["generations"] = generations
-    return GASettings.from_config(ga)
+    return GASettings.from_config(ga, where=cfg.get("_ga_where", "GA settings"))
 
 
 def search_specs(d: Design, items, prefix: str, where: str, nuisance: dict | None = None):

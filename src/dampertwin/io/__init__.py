@@ -86,19 +86,15 @@ def write_frame(path: str | os.PathLike, df: pd.DataFrame, meta: dict) -> Path:
     """Write a frame as Parquet atomically (temp file + rename) with ``meta``
     as JSON in the schema metadata. Deterministic bytes for equal input."""
     path = Path(path)
+    check_targets([path])
     path.parent.mkdir(parents=True, exist_ok=True)
     table = pa.Table.from_pandas(df, preserve_index=False)
     md = dict(table.schema.metadata or {})
     md.pop(b"pandas", None)
     md[META_KEY] = json.dumps(json_safe(meta), sort_keys=True, allow_nan=False).encode()
     table = table.replace_schema_metadata(md)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
+    with atomic_files([path]) as (tmp,):  # a folder at ``path``: OutputError, nothing written
         pq.write_table(table, tmp, compression="zstd")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
@@ -216,7 +212,10 @@ def read_table(path: str | os.PathLike, csv_kw: dict | None = None) -> tuple[pd.
             df = pq.read_table(path).to_pandas()
             meta = read_meta(path)
         else:
-            df = pd.read_csv(path, **(csv_kw or {}))
+            kw = dict(csv_kw or {})
+            if kw.get("engine", "c") == "c":  # whole-file type inference: no DtypeWarning beside our own error
+                kw.setdefault("low_memory", False)
+            df = pd.read_csv(path, **kw)
             meta = {}
     except DataError:
         raise
@@ -420,7 +419,8 @@ def runs(df: pd.DataFrame) -> list[tuple[str | None, pd.DataFrame]]:
 
 
 from .record import read_record, check_record  # noqa: E402  (the one reader of measurement files)
-from .outdir import check_out_dir, out_lock  # noqa: E402
+from .outdir import atomic_files, check_out_dir, check_targets, out_lock  # noqa: E402
 
 __all__ = ["DataError", "UNITS", "REQUIRED", "column", "write_frame", "read_frame", "read_meta", "runs",
-           "read_table", "check_frame", "read_record", "check_record", "check_out_dir", "out_lock"]
+           "read_table", "check_frame", "read_record", "check_record", "check_out_dir", "check_targets", "atomic_files",
+           "out_lock"]

@@ -59,6 +59,39 @@ def check_out_dir(out: str | os.PathLike, option: str = "--out", *, file: bool =
     return o
 
 
+def check_targets(paths, option: str | None = None) -> list[Path]:
+    """The files a command is about to write, checked before anything is written: none may be an existing
+    folder, and the nearest existing folder above each must be a folder (not a file). OutputError naming the
+    path (and ``option``) otherwise. Returns the paths."""
+    out = [Path(p) for p in paths]
+    where = f"{option}: " if option else ""
+    for p in out:
+        if p.is_dir():
+            raise OutputError(f"{where}{p}: is a folder; expected a file path or nothing (remove or rename the folder)")
+        parent = _existing_parent(p.absolute())
+        if not parent.is_dir():
+            raise OutputError(f"{where}{p}: {parent} is a file; expected a folder or nothing there")
+    return out
+
+
+@contextlib.contextmanager
+def atomic_files(paths, suffix: str = "", option: str | None = None):
+    """Temporary paths beside ``paths`` (``.NAME.tmpPID`` + ``suffix``) for the block to write; when it ends
+    without error each is renamed onto its path (every file written before any is replaced), and whatever is
+    left of them is removed in every case (an error, Ctrl-C, SIGTERM). :func:`check_targets` first: a target
+    that is a folder is an OutputError before anything is written."""
+    targets = check_targets(paths, option)
+    tmps = [p.with_name(f".{p.name}.tmp{os.getpid()}{suffix}") for p in targets]
+    try:
+        yield tmps
+        for tmp, p in zip(tmps, targets):
+            os.replace(tmp, p)
+    finally:
+        for tmp in tmps:
+            with contextlib.suppress(FileNotFoundError, IsADirectoryError):
+                tmp.unlink()
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -124,4 +157,4 @@ def out_lock(out: str | os.PathLike, option: str = "--out"):
             signal.signal(signal.SIGTERM, old)
 
 
-__all__ = ["OutputError", "check_out_dir", "out_lock", "lock_path"]
+__all__ = ["OutputError", "check_out_dir", "check_targets", "atomic_files", "out_lock", "lock_path"]

@@ -76,6 +76,16 @@ DYNO_MIN_CYCLES = {"sine": 4, "triangle": 3}  # the KPIs need 2 half-strokes per
 # documented bandwidths [Hz] a protocol may name; deflection: the module test's LVDT on the rod (thesis 7.2)
 SENSOR_KEYS = ("force", "acceleration", "temperature", "deflection")
 PROTOCOLS = tuple(_SCHEMA)
+# Physical plausibility: a unit mix-up (mm written as m, mm/s as m/s) or a sampling too coarse for the test is
+# refused by the loader, naming the file and key (``simulate`` also checks a run against the design's own travel)
+MAX_AMPLITUDE = 0.2  # [m] displacement from mid-stroke (an amplitude, half a stroke, 4 rms of noise): above any
+# road-vehicle damper's travel (conf/design/baseline.yaml: a ~240 mm stroke), 25x below 5 mm written as 5 m
+MAX_VELOCITY = 10.0  # [m/s] peak rod velocity: a road damper sees < ~5 m/s; a mm/s figure written as m/s is 1000x
+SAMPLES_PER_PERIOD = 20  # recorded samples per period of a periodic excitation's highest frequency (a peak
+# is caught within 1 - cos(pi / 20) = 1.2 %)
+NOISE_RATE_RATIO = 2.56  # recording rate / highest band edge of a noise excitation (the spectrum analysers'
+# ratio: the whole band below the Nyquist frequency, with the anti-alias filter's margin)
+_AMPLITUDE_KEY = {"monosine", "thermal", "compliance", "curving", "friction", "dyno"}  # protocols with `amplitude`
 
 
 def validate(doc: Any, where: str) -> dict:
@@ -123,8 +133,7 @@ def validate(doc: Any, where: str) -> dict:
             errors.append(f"{where}: {name}.{k}: unknown key; expected {', '.join([*_SCHEMA[name], *optional])}")
     for key in ("bands",):
         for i, b in enumerate(doc.get(key, []) if isinstance(doc.get(key), list) else []):
-            if not (isinstance(b, dict) and isinstance(b.get("band"), list) and len(b["band"]) == 2
-                    and all(_pos(x) for x in b["band"]) and b["band"][0] < b["band"][1] and _pos(b.get("rms"))):
+            if not _band_ok(b):
                 errors.append(f"{where}: {name}.bands[{i}] must be {{band: [f_lo, f_hi] Hz, rms: m}}, got {b!r}")
     if name == "flowbench" and isinstance(doc.get("valves"), dict):
         for k, v in doc["valves"].items():
@@ -137,9 +146,81 @@ def validate(doc: Any, where: str) -> dict:
         if doc["cycles"] < need:
             errors.append(f"{where}: dyno.cycles = {doc['cycles']}; a {doc['waveform']} step needs >= {need} "
                           f"(steady cycles between the run-in and the run-out)")
+    if not errors:  # every value of the right type: their magnitudes
+        errors += _implausible(name, doc, where)
     if errors:
         raise ProtocolError(errors)
     return doc
+
+
+def _highest_frequency(name: str, c: dict) -> tuple[float, str] | None:
+    """The highest frequency [Hz] of a periodic excitation of the protocol and what sets it; None for noise."""
+    if name in ("monosine", "thermal"):
+        return c["frequency"], f"{name}.frequency"
+    if name in ("compliance", "curving", "dyno"):
+        per = 4.0 if c.get("waveform") == "triangle" else 2 * math.pi  # a triangle's period is 4 A / v
+        return max(c["velocities"]) / (per * c["amplitude"]), f"{name}.velocities / amplitude"
+    if name == "friction":
+        return c["velocity"] / (2 * math.pi * c["amplitude"]), "friction.velocity / amplitude"
+    if name == "training":
+        return max(c["velocities"]) / (math.pi * min(c["strokes"])), "training.velocities / strokes"
+    if name in ("flowbench", "activevalve"):
+        return 1.0 / (2.0 * c["ramp_time"]), f"{name}.ramp_time"
+    return None
+
+
+def _implausible(name: str, c: dict, where: str) -> list[str]:
+    """Values of a well-typed protocol outside what a damper test can be (MAX_AMPLITUDE, MAX_VELOCITY) or
+    sampled too coarsely for its excitation (SAMPLES_PER_PERIOD, NOISE_RATE_RATIO). Returns the problems."""
+    errors = []
+    mix = "expected SI metres (mm written as m?)"
+    amps = {f"{name}.amplitude": c["amplitude"]} if name in _AMPLITUDE_KEY else {}
+    if name == "training":
+        amps[f"{name}.strokes (peak-to-peak) / 2"] = max(c["strokes"]) / 2
+    tm = c if name == "topmount" else {}
+    st, sw, rnd = (tm.get(k) if isinstance(tm.get(k), dict) else {} for k in ("static", "sweep", "random"))
+    if _pos(st.get("amplitude")):
+        amps["topmount.static.amplitude"] = st["amplitude"]
+    if isinstance(sw.get("amplitudes"), list) and all(_pos(a) for a in sw["amplitudes"]) and sw["amplitudes"]:
+        amps["topmount.sweep.amplitudes"] = max(sw["amplitudes"])
+    bands = c.get("bands") or rnd.get("bands")
+    bands = bands if isinstance(bands, list) and bands and all(_band_ok(b) for b in bands) else None
+    bands_key = f"{name}.bands" if "bands" in c else "topmount.random.bands"
+    if bands:
+        amps[f"{bands_key} (4 x the total rms)"] = 4 * math.sqrt(sum(b["rms"] ** 2 for b in bands))
+    for key, a in amps.items():
+        if a > MAX_AMPLITUDE:
+            errors.append(f"{where}: {key} = {a:g} m; above {MAX_AMPLITUDE:g} m from mid-stroke, more than a "
+                          f"damper's travel: {mix}")
+    vels = {f"{name}.velocities": max(c["velocities"])} if isinstance(c.get("velocities"), list) else {}
+    if name == "friction":
+        vels["friction.velocity"] = c["velocity"]
+    if name in ("monosine", "thermal") and c["amplitude"] <= MAX_AMPLITUDE:  # else the amplitude is the error
+        vels[f"{name}.frequency x amplitude (2 pi f A)"] = 2 * math.pi * c["frequency"] * c["amplitude"]
+    for key, v in vels.items():
+        if v > MAX_VELOCITY:
+            errors.append(f"{where}: {key} = {v:g} m/s peak; above {MAX_VELOCITY:g} m/s, faster than a road damper "
+                          f"moves: expected SI m/s (mm/s written as m/s? mm as m?)")
+    hf = _highest_frequency(name, c)
+    rates = [(f"{name}.rate", c["rate"], hf)]
+    if _pos(st.get("rate")) and _pos(st.get("period")):
+        rates.append(("topmount.static.rate", st["rate"], (1.0 / st["period"], "topmount.static.period")))
+    for key, rate, (f, what) in [r for r in rates if r[2] is not None]:
+        if rate < SAMPLES_PER_PERIOD * f:
+            errors.append(f"{where}: {key} = {rate:g} Hz; {what} makes a {f:.4g} Hz excitation, which needs >= "
+                          f"{SAMPLES_PER_PERIOD * f:.4g} Hz ({SAMPLES_PER_PERIOD} samples per period)")
+    if bands:
+        f = max(b["band"][1] for b in bands)
+        if c["rate"] < NOISE_RATE_RATIO * f:
+            errors.append(f"{where}: {name}.rate = {c['rate']:g} Hz; {bands_key} reach {f:g} Hz, which needs >= "
+                          f"{NOISE_RATE_RATIO * f:g} Hz ({NOISE_RATE_RATIO:g} x the highest band edge)")
+    return errors
+
+
+def _band_ok(b) -> bool:
+    """A noise band ``{band: [f_lo, f_hi] Hz, rms: m}``."""
+    return (isinstance(b, dict) and isinstance(b.get("band"), list) and len(b["band"]) == 2
+            and all(_pos(x) for x in b["band"]) and b["band"][0] < b["band"][1] and _pos(b.get("rms")))
 
 
 def _pos(v) -> bool:
