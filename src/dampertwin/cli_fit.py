@@ -56,7 +56,7 @@ def check_search_config(doc: dict, where: str, submodel: str) -> None:
     """The --bounds file's keys and the types a fit cannot check before its
     first simulation: FitError naming the file and the key."""
     from .calibration.approach1 import ITEM_KEYS
-    from .calibration.friction_fit import FRICTION_KEYS
+    from .calibration.friction_fit import FRICTION_KEYS, PHYSICAL_RANGE
 
     allowed = BOUNDS_KEYS.get(submodel, set())
     extra = sorted(map(str, set(doc) - allowed))
@@ -86,6 +86,11 @@ def check_search_config(doc: dict, where: str, submodel: str) -> None:
                                f"{', '.join(FRICTION_KEYS)}")
             if not _number(v):
                 raise FitError(f"{where}: fixed: {k} = {v!r}; expected a finite number")
+            if k in PHYSICAL_RANGE:
+                lo, hi, closed, what = PHYSICAL_RANGE[k]
+                if (v < lo if closed else v <= lo) or (hi is not None and v >= hi):
+                    raise FitError(f"{where}: fixed: {k} = {v!r} outside the physical range of the {what}: expected "
+                                   f"{'>=' if closed else '>'} {lo:g}" + ("" if hi is None else f" and < {hi:g}"))
         searched = {str(n).split(".")[-1] for n in [it.get("key", it.get("name")) for it in items or []]}
         both = sorted(searched & set(fixed))
         if both:
