@@ -71,6 +71,8 @@ def test_device_record_refused_naming_the_column(tmp_path, make, needles):
     ("friction", "fixed: {nosuch: 3}\n", "unknown friction parameter 'nosuch'"),
     ("friction", "fixed: {F_c: -5}\n", "fixed: F_c = -5 outside the physical range of the Coulomb friction force"),
     ("friction", "fixed: {k_b: 0}\n", "fixed: k_b = 0 outside the physical range of the bristle stiffness"),
+    ("friction", "fixed: {F_s: 0}\nparameters:\n  - {name: F_c, bounds: [0, 200]}\n",
+     "fixed: F_s = 0 outside the physical range of the static friction force"),
     ("friction", "fixed: {F_c: 3}\nparameters:\n  - {name: F_c, bounds: [0, 5]}\n", "both fixed and searched"),
     ("valve", "fixed: {F_c: 3}\n", "unknown key(s) fixed for a valve fit"),
     ("valve", "input_cutoff: -5\n", "input_cutoff: expected a positive frequency"),

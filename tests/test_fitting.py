@@ -230,6 +230,42 @@ def test_fit_cli_valve_reports_nrmse_and_intervals(tmp_path):
     assert list(out.glob("valve_*.png"))
 
 
+def test_fit_valve_with_a_complete_bounds_file_needs_no_repository(tmp_path, monkeypatch):
+    """The shipped example conf/fit/valve_piston_intake.yaml gives the search, input_cutoff and objective:
+    run outside a repository with it and --design, the fit needs nothing of conf/calibration (it read
+    conf/calibration/valves.yaml for defaults the file had given, and refused); without the objective the
+    refusal names the key to give."""
+    import shutil
+    from pathlib import Path
+
+    from conftest import BASELINE, ROOT
+    from dampertwin.design import load
+    from dampertwin.excitation import Excitation
+    from dampertwin.simulation import simulate
+
+    t = np.arange(0, 2.001, 1e-3)
+    q = 20.0 / 60000.0 * np.interp(t, [0, 1.0, 2.001], [0.0, 1.0, 0.0])
+    r = simulate(load(BASELINE), Excitation.from_samples(t, q, kind="flow"), "valve", bench_valve="piston_intake",
+                 rate=1000.0).to_frame()
+    rec = write_frame(tmp_path / "pi.parquet", pd.DataFrame(
+        {"time [s]": t, "flow [m^3/s]": q, "dp [Pa]": (r["p upstream [Pa]"] - r["p downstream [Pa]"]).to_numpy()[:len(t)],
+         "run": "piston_intake"}), {"synthetic": True})
+    (tmp_path / "d").mkdir()
+    design = Path(shutil.copy(BASELINE, tmp_path / "d"))
+    shutil.copy(ROOT / "conf" / "design" / "active_valve_baseline.csv", tmp_path / "d")
+    bounds = tmp_path / "b.yaml"
+    shutil.copy(ROOT / "conf" / "fit" / "valve_piston_intake.yaml", bounds)
+    monkeypatch.chdir(tmp_path)
+    argv = ["fit", "valve", "--valve", "piston_intake", "--data", str(rec), "--bounds", str(bounds), "--design",
+            str(design), "--population", "4", "--generations", "1", "--out"]
+    assert main([*argv, str(tmp_path / "fit")]) == 0
+    bounds.write_text("".join(x for x in bounds.read_text().splitlines(True) if not x.startswith("objective:")))
+    with pytest.raises(FitError, match="no objective in --bounds given and no dampertwin repository here"):
+        from dampertwin.cli_fit import run_fit_cli
+        from dampertwin.cli import build_parser
+        run_fit_cli(build_parser().parse_args([*argv, str(tmp_path / "fit2")]))
+
+
 def _top_mount_record(tmp_path, offset: float, design_overrides: dict):
     """A top-mount record simulated from the baseline (SYNTHETIC): 2 s of a
     5 Hz + 60 Hz displacement, force through the documented 1 kHz load cell

@@ -157,3 +157,14 @@ def test_real_brfd_record_fitted_and_held_out_within_8_percent(tmp_path):
     assert r["bound_hits"] == []
     assert r["effects"]["without asymmetric"]["supported"] and r["effects"]["without free_play"]["supported"]
     assert r["effects"]["without any effect"]["nrmse_held_out_without"] > 0.08
+
+
+def test_a_law_that_cannot_run_at_the_start_is_a_fit_error_not_a_traceback(tmp_path):
+    """Through the API (the command line refuses a fixed F_s = 0 before): LuGre's steady bristle state
+    divides by g(0) = F_s, so no start gives a finite force; the fit stops with a FitError naming the
+    bounds, the fixed values and what the law needs, not scipy's ValueError."""
+    from dampertwin.calibration.ga import FitError
+
+    rec = synthetic(tmp_path / "rec.parquet")
+    with pytest.raises(FitError, match=r"no finite force at a start inside the bounds .*'F_s': 0\.0.*F_s > 0"):
+        fit_friction(rec, fixed={"F_s": 0.0}, bounds=[{"name": "F_c", "bounds": [0.0, 200.0]}], starts=2)

@@ -266,3 +266,24 @@ def test_friction_test_refills_the_gas_to_each_precharge(tmp_path):
     assert shift == pytest.approx(-(hi - lo) * A_r, rel=0.15), (shift, A_r)   # the precharge reached the part
     grow = (width["seal", hi] - width["seal", lo]) - (width["plain", hi] - width["plain", lo])
     assert 2 * 0.6 * 1e-5 * (hi - lo) < grow < 2 * 1.4 * 1e-5 * (hi - lo), width
+
+
+def test_the_rig_refuses_a_stroke_beyond_the_parts_travel(tmp_path, capsys):
+    """A protocol under --conf whose monosine amplitude (0.115 m) passes the loader's bound but exceeds the
+    nominal design's 0.11 m of rebound travel: the lab names the protocol file, the key and the design's
+    geometry instead of recording a rod beyond its chamber (the lab-3 truth recorded it silently); nothing is
+    written."""
+    import shutil
+
+    import yaml
+
+    conf = tmp_path / "conf"
+    shutil.copytree(CONF, conf)
+    p = conf / "test" / "monosine.yaml"
+    p.write_text(yaml.safe_dump({**yaml.safe_load(p.read_text()), "amplitude": 0.115, "frequency": 1.0}))
+    out = tmp_path / "out"
+    rc = cli.main(["lab", "--sample", str(conf / "lab" / "sample.yaml"), "--out", str(out), "--tests", "monosine",
+                   "--conf", str(conf), "--workers", "1"])
+    err = capsys.readouterr().err
+    assert rc == 2 and str(p) in err and "monosine.amplitude" in err and "geometry.l_r0" in err, err
+    assert not out.exists() or not list(out.rglob("*.parquet"))

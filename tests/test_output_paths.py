@@ -183,3 +183,37 @@ def test_simulate_writes_both_files_or_neither(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError, match="disk full"):
         st.simulate_test(BASELINE, "monosine", out, case="I1.6", conf=CONF)
     assert listing(out) == []
+
+
+def test_plot_refuses_a_stroke_beyond_the_travel_and_draws_nothing_from_a_stopped_run(tmp_path, capsys,
+                                                                                       monkeypatch):
+    """plot checks the curving / monosine / random strokes against the design's travel as simulate does (0.115 m
+    passes the loader, the baseline has 0.11 m), and refuses a run that stopped early instead of drawing its
+    NaN rows; nothing is written either way."""
+    import numpy as np
+
+    from dampertwin import report
+    from dampertwin.solver import STATUS_TEXT, STEP_UNDERFLOW
+
+    conf = tmp_path / "conf"
+    shutil.copytree(CONF, conf, ignore=shutil.ignore_patterns("lab", "sweep*"))
+    p = conf / "test" / "monosine.yaml"
+    p.write_text(yaml.safe_dump({**yaml.safe_load(p.read_text()), "amplitude": 0.115, "frequency": 1.0}))
+    out = tmp_path / "o"
+    code, _, err = run(["plot", "baseline_1.6", "--out", str(out), "--conf", str(conf)], capsys)
+    one_line_error(code, err, str(p), "monosine.amplitude", "geometry.l_r0")
+    assert not out.exists()
+
+    real = report.simulate
+
+    def stopped(*a, **k):
+        r = real(*a, **k)
+        r.stats = dataclasses.replace(r.stats, status=STEP_UNDERFLOW, message=STATUS_TEXT[STEP_UNDERFLOW])
+        for v in r.channels.values():
+            v[len(v) // 3:] = np.nan
+        return r
+
+    monkeypatch.setattr(report, "simulate", stopped)
+    code, _, err = run(["plot", "baseline_1.6", "--out", str(out), "--conf", str(CONF)], capsys)
+    one_line_error(code, err, "flowbench run", "stopped early (step size underflow); nothing drawn")
+    assert not out.exists()

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -233,7 +234,8 @@ def test_map_with_a_byte_order_mark_loads_and_a_folder_or_flipped_flow_is_named(
     flipped = [lines[0]] + [",".join(r.split(",")[:2] + [str(-float(r.split(",")[2]))]) for r in lines[1:]]
     entry(doc, 52)["value"] = "flipped.csv"
     (tmp_path / "flipped.csv").write_text("\n".join(flipped) + "\n")
-    design_rejected(write_design(tmp_path, doc), "the flow must be positive for dp > 0 (sign flipped?)")
+    msg = design_rejected(write_design(tmp_path, doc), "the flow must be positive for dp > 0 (sign flipped?)")
+    assert re.search(r"column 'flow \[m\^3/s\]' reaches -\d", msg), msg  # the flipped column's largest magnitude
 
 
 def test_map_in_an_explicitly_allowed_folder_loads(tmp_path):

@@ -56,7 +56,7 @@ def check_search_config(doc: dict, where: str, submodel: str) -> None:
     """The --bounds file's keys and the types a fit cannot check before its
     first simulation: FitError naming the file and the key."""
     from .calibration.approach1 import ITEM_KEYS
-    from .calibration.friction_fit import FRICTION_KEYS, PHYSICAL_RANGE
+    from .calibration.friction_fit import FIXED_OPEN, FRICTION_KEYS, PHYSICAL_RANGE
 
     allowed = BOUNDS_KEYS.get(submodel, set())
     extra = sorted(map(str, set(doc) - allowed))
@@ -88,6 +88,7 @@ def check_search_config(doc: dict, where: str, submodel: str) -> None:
                 raise FitError(f"{where}: fixed: {k} = {v!r}; expected a finite number")
             if k in PHYSICAL_RANGE:
                 lo, hi, closed, what = PHYSICAL_RANGE[k]
+                closed = closed and k not in FIXED_OPEN
                 if (v < lo if closed else v <= lo) or (hi is not None and v >= hi):
                     raise FitError(f"{where}: fixed: {k} = {v!r} outside the physical range of the {what}: expected "
                                    f"{'>=' if closed else '>'} {lo:g}" + ("" if hi is None else f" and < {hi:g}"))

@@ -110,6 +110,14 @@ def _study_doc(fname: str) -> dict:
     return yaml_load(_repo_conf("calibration", fname, instead="--bounds / --param").read_text())
 
 
+def _study_default(cfg: dict, key: str, fname: str, default):
+    """``cfg[key]`` (the --bounds file's), else the study's conf/calibration/<fname> value (read only then:
+    a --bounds file that gives the key needs no repository)."""
+    if key in cfg:
+        return cfg[key]
+    return yaml_load(_repo_conf("calibration", fname, instead=f"{key} in --bounds").read_text()).get(key, default)
+
+
 def _protocol(fname: str) -> dict | None:
     """conf/test/<fname>, None when absent."""
     from .protocols import load_protocol
@@ -154,7 +162,7 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
     d, cfg = _load(design), dict(config or {})
     kind = "shim" if valve in cf.SHIM_VALVES else "intake"
     items = bounds or cfg.get("parameters") or (_study_doc("valves.yaml")[kind] if valve in cf.VALVES else [])
-    cutoff = float(cfg.get("input_cutoff", _study_doc("valves.yaml").get("input_cutoff", 20.0)))
+    cutoff = float(_study_default(cfg, "input_cutoff", "valves.yaml", 20.0))
     if valve not in cf.VALVES:
         raise FitError(f"unknown valve {valve!r}; expected {', '.join(cf.VALVES)}")
     frames = _read_all([data, *predict], "flowbench", valve=valve)
@@ -163,7 +171,7 @@ def fit_valve(data, valve: str, *, design=None, bounds: list[dict] | None = None
         settings=cf.ga_settings(cfg, population, generations),
         polish_settings=PolishSettings.from_config(cfg.get("polish") or cf.DEFAULT_POLISH), seed=seed,
         where=cfg.get("_where", "valve search space"), scheduler=scheduler,
-        objective=cfg.get("objective", _study_doc("valves.yaml").get("objective")))
+        objective=_study_default(cfg, "objective", "valves.yaml", None))
     _with_shas(result, out, lambda o: series_plots(o, problem, sims, "dp [Pa]", "valve",
                      x_of=lambda t, ex, extra: (np.interp(t, ex.t0 + ex.dt * np.arange(len(ex.value)), ex.value)
                                                 * 60000.0, "flow [l/min]")))

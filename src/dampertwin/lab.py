@@ -158,6 +158,9 @@ def measure_case(conf: Path, sample: dict, nominal: Design, protocol: str, case:
     if arch != DEFAULT_ARCHITECTURE and protocol != "flowbench":
         runs = passive_runs(runs, at_zero=True)
         extra = {**extra, "architecture": arch}
+    from .simulate_test import check_travel  # the rig cannot stroke the part beyond its travel
+
+    check_travel(d, nominal.path or "<nominal design>", runs, conf / "test" / f"{protocol}.yaml", protocol)
     b = sample["benches"]
     tc = {**TEMPERATURE_DEFAULTS, **b.get("temperature", {})}
     temps = _sequence_temperatures(runs, tc, rng) if protocol != "topmount" else [0.0] * len(runs)

@@ -14,7 +14,9 @@ import matplotlib.pyplot as plt
 from . import report
 from .design import load as load_design
 from .io import atomic_files, check_targets, read_record, runs
+from .errors import UserError
 from .protocols import build_runs, flow_bench, load_all
+from .simulate_test import check_travel
 from .variants import VALVE_DESIGNS, load_variant
 
 CURVING_VELOCITIES = (0.1, 0.3, 0.5, 1.0, 1.5)  # subset of the protocol, for speed
@@ -63,6 +65,9 @@ def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: 
     check_targets([out / f"{name}.png" for name in PLOTS], "--out")  # before any work
     tag = f"\n{dlabel}; {_source_label(data)}"
     protocols = load_all(conf / "test")
+    for name in ("curving", "monosine", "random"):  # a stroke beyond the design's travel, named before any work
+        check_travel(design, design_path or conf / "design" / "baseline.yaml", build_runs(protocols[name], 0),
+                     conf / "test" / f"{name}.yaml", name)
     figures: list = []  # every figure drawn first, written at the end: a bad record leaves the old set whole
 
     def save(fig, name):
@@ -81,6 +86,14 @@ def plot_case(case: str, conf: Path, data: Path | None, out: Path, design_path: 
             plt.close(fig)
 
 
+def _ok(result, what: str):
+    """A simulation that ran to its end; else a UserError (nothing is drawn from a stopped run's NaN rows)."""
+    if not result.ok:
+        raise UserError(f"{what}: the simulation stopped early ({result.stats.message}); nothing drawn (a protocol "
+                        f"value or design parameter outside what the model can run?)")
+    return result
+
+
 def _draw(case: str, design, variant, data: Path | None, tag: str, protocols: dict, save) -> None:
     """The case's figures (P-Q, curving, mono-sine, PSD), each handed to ``save(fig, name)``."""
 
@@ -93,8 +106,8 @@ def _draw(case: str, design, variant, data: Path | None, tag: str, protocols: di
         meas_df = _maybe(_p(data, "flowbench", f"{vd}.parquet"), "flowbench")
         if meas_df is not None:
             meas[valve] = meas_df
-        r = report.simulate(design, run.excitation, "valve", bench_valve=valve, rate=run.rate,
-                            bench=flow_bench(fb))
+        r = _ok(report.simulate(design, run.excitation, "valve", bench_valve=valve, rate=run.rate,
+                                bench=flow_bench(fb)), f"flowbench run {run.name}")
         sim[valve] = r.to_frame()
     save(report.pq_figure(meas, sim, f"{case}: flow-bench P-Q (solid measured, dashed simulated)" + tag), "pq")
 
@@ -102,7 +115,8 @@ def _draw(case: str, design, variant, data: Path | None, tag: str, protocols: di
     res = {}
     for run in build_runs(protocols["curving"]):
         if run.meta["velocity [m/s]"] in CURVING_VELOCITIES:
-            r = report.simulate(design, run.excitation, "damper", current=run.current, rate=run.rate)
+            r = _ok(report.simulate(design, run.excitation, "damper", current=run.current, rate=run.rate),
+                    f"curving run {run.name}")
             res.setdefault(run.current, []).append((run.name, report.frame(r)))
     base_curving = _maybe(_p(data, "curving", "baseline.parquet"), "curving")
     save(report.curving_figure(res, base_curving, f"{case}: curving test (solid: measured baseline)" + tag), "curving")
@@ -111,17 +125,22 @@ def _draw(case: str, design, variant, data: Path | None, tag: str, protocols: di
     ms = _maybe(_p(data, "monosine", f"{case}.parquet"), "monosine")
     f = protocols["monosine"]["frequency"]
     if ms is not None:
-        sim_ms = report.simulate_from_record(design, runs(ms)[0][1], "module", variant.current)
+        sim_ms = _ok(report.simulate_from_record(design, runs(ms)[0][1], "module", variant.current),
+                     "monosine, driven by the measured record")
     else:
         run = next(r for r in build_runs(protocols["monosine"]) if abs(r.current - variant.current) < 1e-9)
-        sim_ms = report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate)
-    save(report.monosine_figure(sim_ms.to_frame(), ms, f, f"{case}: 13 Hz mono-sine at {variant.current:g} A" + tag), "monosine")
+        sim_ms = _ok(report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate),
+                     f"monosine run {run.name}")
+    save(report.monosine_figure(sim_ms.to_frame(), ms, f, f"{case}: {f:g} Hz mono-sine at {variant.current:g} A" + tag),
+         "monosine")
 
     # random road noise PSD
     rnd = _maybe(_p(data, "random", f"{case}.parquet"), "random")
     if rnd is not None:
-        sim_r = report.frame(report.simulate_from_record(design, runs(rnd)[0][1], "module", variant.current))
+        sim_r = report.frame(_ok(report.simulate_from_record(design, runs(rnd)[0][1], "module", variant.current),
+                                 "random, driven by the measured record"))
     else:
         run = next(r for r in build_runs(protocols["random"], 0) if abs(r.current - variant.current) < 1e-9)
-        sim_r = report.frame(report.simulate(design, run.excitation, "module", current=run.current, rate=run.rate))
+        sim_r = report.frame(_ok(report.simulate(design, run.excitation, "module", current=run.current,
+                                                 rate=run.rate), f"random run {run.name}"))
     save(report.psd_figure(sim_r, rnd, f"{case}: random road noise at {variant.current:g} A" + tag), "psd")

@@ -106,8 +106,10 @@ def simulate_test(design_path: str | Path, test: str, out: str | Path, *, case: 
         raise UserError(f"{design_path}: {'a folder' if design_path.is_dir() else 'design file not found'}; expected a design YAML "
                         "(e.g. conf/design/baseline.yaml)")
     proto_path = conf / "test" / f"{test}.yaml"
+    if proto_path.is_dir():
+        raise UserError(f"--test {test}: {proto_path} is a folder; expected the test's protocol YAML file")
     if not proto_path.is_file():
-        known = ", ".join(sorted(p.stem for p in (conf / "test").glob("*.yaml"))) or "none"
+        known = ", ".join(sorted(p.stem for p in (conf / "test").glob("*.yaml") if p.is_file())) or "none"
         raise UserError(f"--test {test}: {proto_path} not found; expected one of: {known}")
     if current is not None and not np.isfinite(current):
         raise UserError(f"--current {current}: expected a finite current in A")

@@ -138,6 +138,12 @@ PHYSICAL_RANGE = {"F_c": (0.0, None, True, "Coulomb friction force [N]"),
                   "delta": (0.0, None, True, "free play [m]")}
 
 
+# fixed values that must exceed their range's closed end: LuGre's steady bristle state z_ss = v / g(v) with
+# g(0) = F_s (eq. 4.38-4.41) divides by a fixed F_s = 0; a search's bound at 0 is never an iterate (trf stays
+# strictly inside its bounds)
+FIXED_OPEN = {"F_s"}
+
+
 def _finite(x) -> bool:
     return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_)) \
         and bool(np.isfinite(x))
@@ -217,8 +223,15 @@ def fit_model(t, v, F, fitted, base: dict, specs: list[ParamSpec], origin: list[
             return np.array([(simulate_friction(t, v, **{**base, **dict(zip(keys, map(float, row)))}) - F)[fitted]
                              for row in np.atleast_2d(X)])
 
-        res = run(Records(residuals, np.ones(int(np.sum(fitted)))), specs, LeastSquaresSettings(starts),
-                  seed=seed + rnd, extra=extra)
+        try:
+            res = run(Records(residuals, np.ones(int(np.sum(fitted)))), specs, LeastSquaresSettings(starts),
+                      seed=seed + rnd, extra=extra)
+        except ValueError as e:  # scipy: "Residuals are not finite in the initial point"
+            if "not finite" not in str(e):
+                raise
+            raise FrictionFitError(f"the friction model gives no finite force at a start inside the bounds "
+                                   f"{ {sp.key: [sp.lo, sp.hi] for sp in specs} } with fixed {base}; expected "
+                                   f"values the LuGre law can run (F_s > 0, k_b > 0, eq. 4.38-4.41)") from None
         genes = res.top[0]
         hits = bound_hits(specs, genes, origin)
         movable = [h for h in hits if h["kind"] == "data-derived"]

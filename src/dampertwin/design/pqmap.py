@@ -136,6 +136,7 @@ def map_from_rows(arr: np.ndarray, label: str, path: str, errors: list[str]) -> 
         errors.append(f"{label}: P/Q map {str(path)!r}: flow at dp = 0 must be 0")
     top_flow = float(np.max(flow))
     flow_hint = "values in l/min?" if top_flow > 0 else "the flow must be positive for dp > 0 (sign flipped?)"
+    top_flow = top_flow if top_flow > 0 else float(np.min(flow))  # a flipped column: name its largest magnitude
     for col, top, (lo, hi), hint in (("current [A]", currents[-1], MAP_RANGE["current"], "values in mA?"),
                                      ("dp [Pa]", dps[-1], MAP_RANGE["dp"], "values in bar (or MPa)?"),
                                      ("flow [m^3/s]", top_flow, MAP_RANGE["flow"], flow_hint)):
