@@ -12,25 +12,16 @@ import pandas as pd
 import pytest
 import yaml
 
-from dampertwin.cli import main
 from dampertwin.errors import UserError
 from dampertwin.io import atomic_files, check_targets, write_frame
 from dampertwin.io.outdir import OutputError
 from dampertwin.protocols import ProtocolError, load_protocol
 
 from conftest import BASELINE, ROOT
+from test_cli import run  # main(argv) in process -> (exit code, stdout, stderr)
 
 CONF = ROOT / "conf"
 FOLDER = "is a folder; expected a file path or nothing"
-
-
-def run(argv, capsys):
-    try:
-        code = main(argv)
-    except SystemExit as e:
-        code = e.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def one_line_error(code, err, *needles):
@@ -146,13 +137,11 @@ def test_simulate_refuses_a_stroke_beyond_the_designs_travel(tmp_path, capsys):
 
 
 # ------------------------------------------------------------ a run that stopped early
-def test_simulate_writes_nothing_when_a_run_stopped_early(tmp_path, capsys, monkeypatch):
+def _stopped(real):
+    """``real`` (a simulate) whose result reports a step-size underflow and NaN rows from a third on."""
     import numpy as np
 
-    from dampertwin import simulate_test as st
     from dampertwin.solver import STATUS_TEXT, STEP_UNDERFLOW
-
-    real = st.simulate
 
     def stopped(*a, **k):
         r = real(*a, **k)
@@ -161,7 +150,13 @@ def test_simulate_writes_nothing_when_a_run_stopped_early(tmp_path, capsys, monk
             v[len(v) // 3:] = np.nan
         return r
 
-    monkeypatch.setattr(st, "simulate", stopped)
+    return stopped
+
+
+def test_simulate_writes_nothing_when_a_run_stopped_early(tmp_path, capsys, monkeypatch):
+    from dampertwin import simulate_test as st
+
+    monkeypatch.setattr(st, "simulate", _stopped(st.simulate))
     out = tmp_path / "o"
     code, _, err = run(["simulate", str(BASELINE), "--test", "monosine", "--case", "I1.6", "--out", str(out)], capsys)
     one_line_error(code, err, "run I1.6", "stopped early (step size underflow)", "nothing written")
@@ -190,10 +185,7 @@ def test_plot_refuses_a_stroke_beyond_the_travel_and_draws_nothing_from_a_stoppe
     """plot checks the curving / monosine / random strokes against the design's travel as simulate does (0.115 m
     passes the loader, the baseline has 0.11 m), and refuses a run that stopped early instead of drawing its
     NaN rows; nothing is written either way."""
-    import numpy as np
-
     from dampertwin import report
-    from dampertwin.solver import STATUS_TEXT, STEP_UNDERFLOW
 
     conf = tmp_path / "conf"
     shutil.copytree(CONF, conf, ignore=shutil.ignore_patterns("lab", "sweep*"))
@@ -204,16 +196,7 @@ def test_plot_refuses_a_stroke_beyond_the_travel_and_draws_nothing_from_a_stoppe
     one_line_error(code, err, str(p), "monosine.amplitude", "geometry.l_r0")
     assert not out.exists()
 
-    real = report.simulate
-
-    def stopped(*a, **k):
-        r = real(*a, **k)
-        r.stats = dataclasses.replace(r.stats, status=STEP_UNDERFLOW, message=STATUS_TEXT[STEP_UNDERFLOW])
-        for v in r.channels.values():
-            v[len(v) // 3:] = np.nan
-        return r
-
-    monkeypatch.setattr(report, "simulate", stopped)
+    monkeypatch.setattr(report, "simulate", _stopped(report.simulate))
     code, _, err = run(["plot", "baseline_1.6", "--out", str(out), "--conf", str(CONF)], capsys)
     one_line_error(code, err, "flowbench run", "stopped early (step size underflow); nothing drawn")
     assert not out.exists()
